@@ -1,0 +1,220 @@
+//! The model card inside an ONNX file: the `temc.*` metadata_props of docs/contracts.md §2.
+//!
+//! The core reads alignment, overlap, channel layout and PQ scale from here rather than
+//! hard-coding them, so a retrained or resized model needs no code change.
+
+use std::collections::BTreeMap;
+
+use crate::Error;
+
+/// The metadata format this build understands.
+pub const FORMAT_VERSION: &str = "1";
+
+/// The aux layout every shipped model uses: albedo (3), normal (3), depth (1).
+pub const AUX_LAYOUT: &str = "albedo:3,normal:3,depth:1";
+
+/// What a model says about itself.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelInfo {
+    /// `temc2`, `temc1`, `demc` or `ae`.
+    pub architecture: String,
+    /// Width multiplier; 1.0 is the paper's network.
+    pub width: f32,
+    /// H and W of every run must be multiples of this.
+    pub alignment: usize,
+    /// Theoretical receptive field in pixels.
+    pub receptive_field: usize,
+    /// Overlap the tiler should use, in pixels.
+    pub tile_overlap: usize,
+    /// How chroma is encoded (`hs`: hue and saturation, 2 channels).
+    pub chroma_encoding: String,
+    /// Number of chroma channels, from the encoding.
+    pub chroma_channels: usize,
+    /// The aux buffer layout, e.g. `albedo:3,normal:3,depth:1`.
+    pub aux_layout: String,
+    /// Number of aux channels, from the layout.
+    pub aux_channels: usize,
+    /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
+    pub pq_nits_per_unit: f32,
+    /// Training data set, or `none` for an untrained test model.
+    pub dataset: String,
+    /// Optimiser steps the weights were trained for.
+    pub train_steps: u64,
+    /// RelMSE on the project's test set, if measured.
+    pub test_relmse: Option<f64>,
+    /// Free text.
+    pub description: String,
+    /// Every `temc.*` entry, as found.
+    pub raw: BTreeMap<String, String>,
+}
+
+impl ModelInfo {
+    /// Parses the `temc.*` entries of an ONNX model's metadata_props (keys and values as
+    /// stored; other keys are ignored). Missing or malformed required keys are errors that
+    /// name the key.
+    pub fn from_props<'a>(
+        props: impl IntoIterator<Item = (&'a str, &'a str)>,
+    ) -> Result<Self, Error> {
+        let raw: BTreeMap<String, String> = props
+            .into_iter()
+            .filter(|(k, _)| k.starts_with("temc."))
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        let get = |key: &str| -> Result<&str, Error> {
+            raw.get(key).map(String::as_str).ok_or_else(|| {
+                Error::Model(format!(
+                    "metadata key `{key}` is missing; is this a temc model (docs/contracts.md §2)?"
+                ))
+            })
+        };
+        fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, Error> {
+            v.trim().parse().map_err(|_| {
+                Error::Model(format!("metadata `{key}` = {v:?} is not a valid number"))
+            })
+        }
+        let format = get("temc.format")?;
+        if format != FORMAT_VERSION {
+            return Err(Error::Model(format!(
+                "metadata `temc.format` = {format:?} is not supported (this build reads {FORMAT_VERSION:?})"
+            )));
+        }
+        let chroma_encoding = get("temc.chroma_encoding")?.to_string();
+        let chroma_channels = match chroma_encoding.as_str() {
+            "hs" => 2,
+            other => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.chroma_encoding` = {other:?} is not supported (expected \"hs\")"
+                )))
+            }
+        };
+        let aux_layout = get("temc.aux_layout")?.to_string();
+        let aux_channels = parse_layout(&aux_layout)?;
+        let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
+        if alignment == 0 || !alignment.is_power_of_two() {
+            return Err(Error::Model(format!(
+                "metadata `temc.alignment` = {alignment} must be a power of two"
+            )));
+        }
+        let width: f32 = num("temc.width", get("temc.width")?)?;
+        let pq_nits_per_unit: f32 = num("temc.pq_nits_per_unit", get("temc.pq_nits_per_unit")?)?;
+        for (key, v) in [
+            ("temc.width", width),
+            ("temc.pq_nits_per_unit", pq_nits_per_unit),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(Error::Model(format!(
+                    "metadata `{key}` = {v} must be positive"
+                )));
+            }
+        }
+        let test_relmse = match get("temc.test_relmse")? {
+            "none" | "" => None,
+            v => Some(num("temc.test_relmse", v)?),
+        };
+        Ok(Self {
+            architecture: get("temc.architecture")?.to_string(),
+            width,
+            alignment,
+            receptive_field: num("temc.receptive_field", get("temc.receptive_field")?)?,
+            tile_overlap: num("temc.tile_overlap", get("temc.tile_overlap")?)?,
+            chroma_encoding,
+            chroma_channels,
+            aux_layout,
+            aux_channels,
+            pq_nits_per_unit,
+            dataset: get("temc.dataset")?.to_string(),
+            train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
+            test_relmse,
+            description: raw.get("temc.description").cloned().unwrap_or_default(),
+            raw: raw.clone(),
+        })
+    }
+
+    /// True when the weights were never trained (test and benchmark models).
+    pub fn is_untrained(&self) -> bool {
+        self.dataset == "none"
+    }
+}
+
+/// Sums the channel counts of a layout such as `albedo:3,normal:3,depth:1`.
+fn parse_layout(layout: &str) -> Result<usize, Error> {
+    let mut total = 0;
+    for part in layout.split(',').filter(|p| !p.is_empty()) {
+        let (name, n) = part.split_once(':').ok_or_else(|| {
+            Error::Model(format!(
+                "metadata `temc.aux_layout`: entry {part:?} is not name:channels"
+            ))
+        })?;
+        let n: usize = n.parse().map_err(|_| {
+            Error::Model(format!(
+                "metadata `temc.aux_layout`: entry {part:?} has a bad channel count"
+            ))
+        })?;
+        if name.is_empty() || n == 0 {
+            return Err(Error::Model(format!(
+                "metadata `temc.aux_layout`: entry {part:?} is empty"
+            )));
+        }
+        total += n;
+    }
+    Ok(total)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn card() -> Vec<(&'static str, &'static str)> {
+        vec![
+            ("temc.format", "1"),
+            ("temc.architecture", "temc2"),
+            ("temc.width", "0.0625"),
+            ("temc.alignment", "32"),
+            ("temc.receptive_field", "404"),
+            ("temc.tile_overlap", "224"),
+            ("temc.chroma_encoding", "hs"),
+            ("temc.aux_layout", AUX_LAYOUT),
+            ("temc.pq_nits_per_unit", "100"),
+            ("temc.dataset", "none"),
+            ("temc.train_steps", "0"),
+            ("temc.test_relmse", "none"),
+            ("other.key", "ignored"),
+        ]
+    }
+
+    #[test]
+    fn parses_a_full_card() {
+        let m = ModelInfo::from_props(card()).unwrap();
+        assert_eq!(m.architecture, "temc2");
+        assert_eq!((m.alignment, m.chroma_channels, m.aux_channels), (32, 2, 7));
+        assert_eq!(m.test_relmse, None);
+        assert!(m.is_untrained());
+        assert!(!m.raw.contains_key("other.key"));
+    }
+
+    #[test]
+    fn names_the_missing_or_bad_key() {
+        for (key, bad) in [
+            ("temc.alignment", Some("24")),
+            ("temc.alignment", Some("x")),
+            ("temc.format", Some("2")),
+            ("temc.chroma_encoding", Some("lab")),
+            ("temc.aux_layout", Some("albedo3")),
+            ("temc.width", Some("-1")),
+            ("temc.train_steps", None),
+        ] {
+            let props: Vec<_> = card()
+                .into_iter()
+                .filter_map(|(k, v)| {
+                    if k == key {
+                        bad.map(|b| (k, b))
+                    } else {
+                        Some((k, v))
+                    }
+                })
+                .collect();
+            let err = ModelInfo::from_props(props).unwrap_err().to_string();
+            assert!(err.contains(key), "{key}: {err}");
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Runs a temc ONNX model with tract, one cached fixed-size plan per tile shape.
+//!
+//! tract plans built for symbolic H x W either fail to load or run several times slower
+//! (no direct convolution without concrete shapes, see docs/tract-vs-onnxruntime.md), while
+//! a concrete plan builds in milliseconds to a few hundred. So a [`Model`] keeps the parsed
+//! graph and builds one optimised plan per (H, W) on first use; plans are shared between
+//! threads (`Arc`), and each run gets its own state.
+
+mod metadata;
+
+pub use metadata::{ModelInfo, AUX_LAYOUT, FORMAT_VERSION};
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+use tract_onnx::prelude::*;
+
+use crate::Error;
+
+/// Names of the graph's inputs, in the order [`Model::run`] takes them.
+pub const INPUT_NAMES: [&str; 3] = ["chroma", "luma", "aux"];
+/// Name of the graph's output.
+pub const OUTPUT_NAME: &str = "hsv";
+
+type Plan = TypedSimplePlan;
+
+/// The network's inputs for one tile, each NCHW with N = 1, row-major.
+#[derive(Clone, Copy, Debug)]
+pub struct NetInput<'a> {
+    /// (H, S) planes: `chroma_channels * h * w` values.
+    pub chroma: &'a [f32],
+    /// V plane: `h * w` values.
+    pub luma: &'a [f32],
+    /// Aux planes: `aux_channels * h * w` values.
+    pub aux: &'a [f32],
+}
+
+/// A loaded model: its metadata, its parsed graph, and a cache of size-specific plans.
+pub struct Model {
+    info: ModelInfo,
+    graph: InferenceModel,
+    /// Position of chroma, luma and aux among the graph's inputs.
+    input_order: [usize; 3],
+    plans: Mutex<HashMap<(usize, usize), Arc<Plan>>>,
+}
+
+impl std::fmt::Debug for Model {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Model")
+            .field("info", &self.info)
+            .finish_non_exhaustive()
+    }
+}
+
+fn model_err(context: &str) -> impl Fn(TractError) -> Error + '_ {
+    move |e| Error::Model(format!("{context}: {e:#}"))
+}
+
+impl Model {
+    /// Loads a model from the bytes of an ONNX file (e.g. one embedded in the library or
+    /// handed over through the C ABI). The file must carry temc metadata.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        let onnx = tract_onnx::onnx();
+        let proto = onnx
+            .proto_model_for_read(&mut &bytes[..])
+            .map_err(model_err("not a readable ONNX model"))?;
+        let info = ModelInfo::from_props(
+            proto
+                .metadata_props
+                .iter()
+                .map(|e| (e.key.as_str(), e.value.as_str())),
+        )?;
+        let graph = onnx
+            .model_for_proto_model(&proto)
+            .map_err(model_err("ONNX graph not supported"))?;
+        Self::new(info, graph)
+    }
+
+    /// Loads a model from an ONNX file.
+    pub fn from_path(path: impl AsRef<Path>) -> Result<Self, Error> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes)
+    }
+
+    fn new(info: ModelInfo, graph: InferenceModel) -> Result<Self, Error> {
+        let names: Vec<String> = graph
+            .input_outlets()
+            .map_err(model_err("graph inputs"))?
+            .iter()
+            .map(|o| graph.node(o.node).name.clone())
+            .collect();
+        let mut input_order = [0; 3];
+        for (slot, want) in input_order.iter_mut().zip(INPUT_NAMES) {
+            *slot = names.iter().position(|n| n == want).ok_or_else(|| {
+                Error::Model(format!(
+                    "the graph has no input named {want:?} (inputs: {names:?})"
+                ))
+            })?;
+        }
+        if names.len() != 3 {
+            return Err(Error::Model(format!(
+                "expected exactly the inputs {INPUT_NAMES:?}, found {names:?}"
+            )));
+        }
+        let outputs = graph.output_outlets().map_err(model_err("graph outputs"))?;
+        let out_name = outputs
+            .first()
+            .map(|o| graph.node(o.node).name.clone())
+            .unwrap_or_default();
+        if outputs.len() != 1 || out_name != OUTPUT_NAME {
+            return Err(Error::Model(format!(
+                "expected one output named {OUTPUT_NAME:?}, found {} ({out_name:?} first)",
+                outputs.len()
+            )));
+        }
+        Ok(Self {
+            info,
+            graph,
+            input_order,
+            plans: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// The model's metadata.
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    /// Checks that an H x W run is allowed: non-zero multiples of the alignment.
+    pub fn check_size(&self, h: usize, w: usize) -> Result<(), Error> {
+        let a = self.info.alignment;
+        if h == 0 || w == 0 || !h.is_multiple_of(a) || !w.is_multiple_of(a) {
+            return Err(Error::InvalidArgument(format!(
+                "tile {h}x{w} is not a non-zero multiple of the model's alignment {a}"
+            )));
+        }
+        Ok(())
+    }
+
+    /// The optimised plan for H x W, built on first use and cached.
+    pub fn plan(&self, h: usize, w: usize) -> Result<Arc<Plan>, Error> {
+        self.check_size(h, w)?;
+        if let Some(p) = self
+            .plans
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&(h, w))
+        {
+            return Ok(p.clone());
+        }
+        // Built outside the lock: other sizes must not wait for this one. Two threads that
+        // race on the same new size both build it; the second insert wins, both are valid.
+        let plan = Arc::new(self.build_plan(h, w)?);
+        self.plans
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert((h, w), plan.clone());
+        Ok(plan)
+    }
+
+    /// The sizes whose plans are cached.
+    pub fn cached_sizes(&self) -> Vec<(usize, usize)> {
+        let mut v: Vec<_> = self
+            .plans
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .keys()
+            .copied()
+            .collect();
+        v.sort_unstable();
+        v
+    }
+
+    fn build_plan(&self, h: usize, w: usize) -> Result<Plan, Error> {
+        let channels = [self.info.chroma_channels, 1, self.info.aux_channels];
+        let mut g = self.graph.clone();
+        for (k, &slot) in self.input_order.iter().enumerate() {
+            g = g
+                .with_input_fact(slot, f32::fact([1, channels[k], h, w]).into())
+                .map_err(model_err("setting input shapes"))?;
+        }
+        let ctx = format!("planning {h}x{w}");
+        g.into_optimized()
+            .and_then(|m| m.into_runnable())
+            .map_err(|e| Error::Model(format!("{ctx}: {e:#}")))
+            .and_then(|p| {
+                Arc::try_unwrap(p).map_err(|_| Error::Model(format!("{ctx}: plan shared")))
+            })
+    }
+
+    /// Runs the network on one H x W tile; returns the `hsv` output, 3 x H x W values.
+    pub fn run(&self, input: NetInput<'_>, h: usize, w: usize) -> Result<Vec<f32>, Error> {
+        let plan = self.plan(h, w)?;
+        let hw = h * w;
+        let parts = [
+            (input.chroma, self.info.chroma_channels),
+            (input.luma, 1),
+            (input.aux, self.info.aux_channels),
+        ];
+        let mut tensors: Vec<Option<TValue>> = vec![None, None, None];
+        for (k, (data, c)) in parts.into_iter().enumerate() {
+            if data.len() != c * hw {
+                return Err(Error::InvalidArgument(format!(
+                    "input {:?}: expected {c}x{h}x{w} = {} values, got {}",
+                    INPUT_NAMES[k],
+                    c * hw,
+                    data.len()
+                )));
+            }
+            let t = Tensor::from_shape(&[1, c, h, w], data)
+                .map_err(|e| Error::Inference(format!("{e:#}")))?;
+            tensors[self.input_order[k]] = Some(t.into());
+        }
+        let inputs: TVec<TValue> = tensors.into_iter().map(|t| t.expect("all set")).collect();
+        let out = plan
+            .run(inputs)
+            .map_err(|e| Error::Inference(format!("{h}x{w}: {e:#}")))?;
+        let view = out[0]
+            .try_as_plain_ram()
+            .and_then(|v| v.as_slice::<f32>().map(<[f32]>::to_vec))
+            .map_err(|e| Error::Inference(format!("reading output: {e:#}")))?;
+        if view.len() != 3 * hw {
+            return Err(Error::Model(format!(
+                "output has {} values, expected 3x{h}x{w}",
+                view.len()
+            )));
+        }
+        Ok(view)
+    }
+}

@@ -1,0 +1,60 @@
+//! Helpers shared by the integration tests: reading the golden .npy tensors.
+
+#![allow(dead_code)]
+
+use std::path::Path;
+
+/// A float32 tensor read from a .npy file.
+pub struct Npy {
+    pub shape: Vec<usize>,
+    pub data: Vec<f32>,
+}
+
+/// Reads a little-endian float32, C-order .npy file (format versions 1 to 3); panics with
+/// the path on anything else, since goldens are test fixtures.
+pub fn read_npy(path: &Path) -> Npy {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(
+        bytes.len() > 10 && &bytes[..6] == b"\x93NUMPY",
+        "{}: not .npy",
+        path.display()
+    );
+    let (header_len, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => panic!("{}: npy version {v}", path.display()),
+    };
+    let header = std::str::from_utf8(&bytes[start..start + header_len]).expect("ascii header");
+    assert!(
+        header.contains("'descr': '<f4'"),
+        "{}: {header}",
+        path.display()
+    );
+    assert!(
+        header.contains("'fortran_order': False"),
+        "{}: {header}",
+        path.display()
+    );
+    let shape_src = header
+        .split("'shape': (")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .expect("shape");
+    let shape: Vec<usize> = shape_src
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().expect("dim"))
+        .collect();
+    let body = &bytes[start + header_len..];
+    let n: usize = shape.iter().product();
+    assert_eq!(body.len(), n * 4, "{}: size", path.display());
+    let data = body
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    Npy { shape, data }
+}
