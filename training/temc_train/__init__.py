@@ -1,0 +1,1 @@
+"""temc's training package: model definitions, loss, colour transform, ONNX export."""
