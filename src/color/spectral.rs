@@ -5,14 +5,13 @@
 //!
 //! The CIE 1931 2-degree colour matching functions are the multi-lobe piecewise-Gaussian fit
 //! of Wyman, Sloan and Shirley, "Simple Analytic Approximations to the CIE XYZ Color Matching
-//! Functions", JCGT 2(2), 2013. Measured against the tabulated CIE data (1 nm, 360..830 nm)
-//! by `training/tests/test_cmf.py`: see the constant [`CMF_FIT_MAX_ABS_ERROR`].
+//! Functions", JCGT 2(2), 2013. Its error against the tabulated CIE 1931 2-degree observer
+//! (1 nm, 360..830 nm), measured by `training/tests/test_cmf.py`: at most 0.015, 0.0076 and
+//! 0.024 absolute for x-bar, y-bar and z-bar (whose peaks are about 1.06, 1.0 and 1.78);
+//! integrated over a flat, a ramp, a 3000 K blackbody and a green band spectrum, XYZ is
+//! within 0.33 % of Y of the tabulated result.
 
 use crate::Error;
-
-/// Largest absolute difference between the fit and the tabulated CIE 1931 2-degree CMFs
-/// over 360..830 nm (the peak of y-bar is 1.0), as measured by `training/tests/test_cmf.py`.
-pub const CMF_FIT_MAX_ABS_ERROR: f64 = 0.0; // replaced by the measured value
 
 /// The visible range the normalisation integrates over, in nm.
 pub const VISIBLE_NM: (f64, f64) = (360.0, 830.0);

@@ -111,7 +111,12 @@ impl Model {
         // An output is named by its outlet label (the ONNX value name), not its node.
         let out_name = outputs
             .first()
-            .map(|o| graph.outlet_label(*o).unwrap_or(&graph.node(o.node).name).to_string())
+            .map(|o| {
+                graph
+                    .outlet_label(*o)
+                    .unwrap_or(&graph.node(o.node).name)
+                    .to_string()
+            })
             .unwrap_or_default();
         if outputs.len() != 1 || out_name != OUTPUT_NAME {
             return Err(Error::Model(format!(

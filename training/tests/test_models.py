@@ -1,0 +1,65 @@
+import pytest
+import torch
+
+from temc_train.models import ARCHS, build, count_params
+
+# Parameter counts at width 1.0, from ../shared/reference/temc-architecture.md:
+# (conv/deconv weights and biases, batch-norm gamma/beta).
+EXPECTED = {
+    # DEMC on HSV (3 channels in, 3 out) is exactly the note's DEMC: 44.85 M.
+    "demc": (44_843_268, 4_224),
+    # TEMC-2 with two stabilising convs: 64.9 M, as in the note's table.
+    "temc2": (64_885_636, 5_248),
+    # TEMC-1 = chroma DEMC (2 in, 2 out: 576 + 577 fewer than DEMC) + AE (1 -> 1, 1,395,201).
+    "temc1": (44_843_268 - 1_153 + 1_395_201, 4_224),
+    # AE baseline on chroma || luma || aux (10 -> 3): the note's AE (1 -> 1) plus
+    # 9 input channels x 32 x 9 and 2 more output channels x (32 x 9 + 1).
+    "ae": (1_395_201 + 9 * 32 * 9 + 2 * (32 * 9 + 1), 0),
+}
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_parameter_counts_match_the_architecture_note(arch):
+    assert count_params(build(arch, 1.0)) == EXPECTED[arch]
+
+
+def test_note_totals():
+    # The note's headline figures.
+    assert round(sum(count_params(build("demc", 1.0))) / 1e6, 2) == 44.85
+    assert round(sum(count_params(build("temc2", 1.0))) / 1e6, 1) == 64.9
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+@pytest.mark.parametrize("size", [(32, 32), (64, 96)])
+def test_output_shape_and_range(arch, size):
+    torch.manual_seed(0)
+    m = build(arch, 0.0625).eval()
+    h, w = size
+    xs = [torch.rand(2, c, h, w) for c in (2, 1, 7)]
+    with torch.no_grad():
+        y = m(*xs)
+    assert y.shape == (2, 3, h, w)
+    assert torch.all((y >= 0) & (y <= 1))
+
+
+def test_width_scales_parameters_roughly_quadratically():
+    big = sum(count_params(build("temc2", 0.5)))
+    small = sum(count_params(build("temc2", 0.25)))
+    assert 3.5 < big / small < 4.5
+
+
+def test_temc1_branches_are_independent():
+    # V comes only from the luma autoencoder, (H, S) only from the chroma DEMC.
+    torch.manual_seed(0)
+    m = build("temc1", 0.0625).eval()
+    c, l, a = torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32)
+    with torch.no_grad():
+        y0 = m(c, l, a)
+        y1 = m(c, torch.rand(1, 1, 32, 32), a)
+    assert torch.equal(y0[:, :2], y1[:, :2])
+    assert not torch.equal(y0[:, 2], y1[:, 2])
+
+
+def test_unknown_architecture():
+    with pytest.raises(ValueError):
+        build("unet", 1.0)
