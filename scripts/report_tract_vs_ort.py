@@ -32,6 +32,10 @@ STEPS = {
     "each Concat + 1x1 fusion rewritten as a sum of 1x1 convs (exactly the same function)",
     "fused, no direct conv": "the fused graph with tract's direct 3x3 convolution kernel disabled "
     "(TRACT_DISABLE_DIRECT_SPATIAL=1: convs go through lazy im2col + matrix multiply)",
+    "fused, blocked conv": "the fused graph with tract's direct blocked convolution forced on "
+    "(TRACT_ENABLE_BLOCKED_CONV=1; off by default on native targets)",
+    "fused, eager im2col": "the fused graph with eager instead of lazy im2col "
+    "(TRACT_LAZY_IM2COL_MIN_KERNEL=100, TRACT_LAZY_IM2COL_MAX_EAGER_BYTES=4e9)",
 }
 
 
@@ -86,6 +90,23 @@ def main():
             w(f"| {width} | {size}x{size} | {threads} | {s} | {t['mpix_per_s']:.3f} | "
               f"{ort_best['mpix_per_s']:.3f} ({ort_best['config']}, {ort_best['step']} graph) | "
               f"**{ratio:.2f}x** |")
+    w("")
+    w("## Effect of each step on tract (throughput change against the plain graph)")
+    w("")
+    w("| width | size | threads | " + " | ".join(s for s in steps if s != "plain") + " |")
+    w("|---|---|---|" + "---|" * (len(steps) - 1))
+    for (width, size, threads) in keys:
+        base = [r for r in by.get((width, size, threads, "plain"), []) if r["engine"] == "tract"]
+        if not base:
+            continue
+        cells = []
+        for s in steps[1:]:
+            tr = [r for r in by.get((width, size, threads, s), []) if r["engine"] == "tract"]
+            cells.append(f"{100 * (tr[0]['mpix_per_s'] / base[0]['mpix_per_s'] - 1):+.0f} %" if tr else "")
+        w(f"| {width} | {size}x{size} | {threads} | " + " | ".join(cells) + " |")
+    w("")
+    w("Tile size: compare the 256x256 and 1024x1024 rows above (pixels per second, same")
+    w("graph and threads).")
     w("")
     w("All onnxruntime configurations:")
     w("")

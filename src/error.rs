@@ -15,6 +15,12 @@ pub enum Error {
     /// tract failed while planning or running a model.
     #[error("inference: {0}")]
     Inference(String),
+    /// The progress monitor asked to stop; nothing was written.
+    #[error("cancelled by the progress monitor")]
+    Cancelled,
+    /// A buffer could not be allocated.
+    #[error("out of memory: {0}")]
+    OutOfMemory(String),
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {

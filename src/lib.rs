@@ -9,8 +9,12 @@
 
 #![warn(missing_docs)]
 
+pub mod capi;
 pub mod color;
 pub mod engine;
 mod error;
+pub mod filter;
+pub mod image;
+pub mod tile;
 
 pub use error::{Error, Result};

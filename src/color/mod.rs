@@ -124,5 +124,33 @@ pub fn decode(hsv: [f32; 3], excess: f32, exposure: Exposure) -> [f32; 3] {
     pq.map(|e| (pq::decode(e as f64) * restore / k).min(limit) as f32)
 }
 
+/// The grey level that automatic exposure maps an image's log-average luminance to.
+pub const AUTO_EXPOSURE_KEY: f64 = 0.18;
+
+/// Automatic input scale, as OIDN computes it for HDR images: `0.18 / exp(mean(ln Y))` over
+/// the pixels with luminance above 1e-8 (after sanitising), so the image's log-average
+/// maps to mid-grey. An image with no such pixel gets 1.0. The result is computed from
+/// the whole image once, before tiling, so it is the same for every tile.
+pub fn auto_input_scale(pixels: impl Iterator<Item = [f32; 3]>) -> f32 {
+    let (mut sum, mut n) = (0.0f64, 0u64);
+    for p in pixels {
+        let c = sanitize_rgb(p);
+        let y: f64 = c
+            .iter()
+            .zip(LUMA_WEIGHTS)
+            .map(|(&v, w)| v as f64 * w as f64)
+            .sum();
+        if y > 1e-8 {
+            sum += y.ln();
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return 1.0;
+    }
+    let scale = AUTO_EXPOSURE_KEY / (sum / n as f64).exp();
+    (scale as f32).clamp(1e-20, 1e20)
+}
+
 #[cfg(test)]
 mod tests;

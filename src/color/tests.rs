@@ -171,3 +171,14 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn auto_exposure_maps_the_log_average_to_mid_grey() {
+    let img = [[0.5f32; 3], [2.0; 3], [f32::NAN; 3], [0.0; 3]];
+    // ln-average of Y over 0.5 and 2.0 is 1.0 (NaN and black are skipped).
+    assert!((auto_input_scale(img.into_iter()) - 0.18).abs() < 1e-6);
+    assert_eq!(auto_input_scale([[0.0f32; 3]].into_iter()), 1.0);
+    assert_eq!(auto_input_scale(std::iter::empty()), 1.0);
+    let huge = auto_input_scale([[f32::INFINITY; 3]].into_iter());
+    assert!(huge.is_finite() && huge > 0.0);
+}

@@ -43,6 +43,7 @@ pub struct Model {
     /// Position of chroma, luma and aux among the graph's inputs.
     input_order: [usize; 3],
     plans: Mutex<HashMap<(usize, usize), Arc<Plan>>>,
+    memory: std::sync::OnceLock<(f64, f64)>,
 }
 
 impl std::fmt::Debug for Model {
@@ -129,6 +130,7 @@ impl Model {
             graph,
             input_order,
             plans: Mutex::new(HashMap::new()),
+            memory: std::sync::OnceLock::new(),
         })
     }
 
@@ -167,6 +169,41 @@ impl Model {
             .unwrap_or_else(|e| e.into_inner())
             .insert((h, w), plan.clone());
         Ok(plan)
+    }
+
+    /// A conservative model of the memory one run needs: `(fixed bytes, bytes per pixel)`,
+    /// from the sum of every node's output at two tile sizes (as if nothing were freed;
+    /// tract frees tensors after their last use, so real peaks are lower). Computed once.
+    pub fn memory_estimate(&self) -> Result<(f64, f64), Error> {
+        if let Some(e) = self.memory.get() {
+            return Ok(*e);
+        }
+        let a = self.info.alignment;
+        let (s1, s2) = (2 * a, 4 * a);
+        let b1 = self.plan_bytes(s1)?;
+        let b2 = self.plan_bytes(s2)?;
+        let per_px = ((b2 - b1) / ((s2 * s2 - s1 * s1) as f64)).max(0.0);
+        let fixed = (b1 - per_px * (s1 * s1) as f64).max(0.0);
+        Ok(*self.memory.get_or_init(|| (fixed, per_px)))
+    }
+
+    fn plan_bytes(&self, s: usize) -> Result<f64, Error> {
+        let plan = self.plan(s, s)?;
+        let mut total = 0.0;
+        for node in plan.model().nodes() {
+            for o in &node.outputs {
+                if let Some(shape) = o.fact.shape.as_concrete() {
+                    total +=
+                        shape.iter().product::<usize>() as f64 * o.fact.datum_type.size_of() as f64;
+                }
+            }
+        }
+        // The size-specific plan was only for measuring; do not keep it cached.
+        self.plans
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&(s, s));
+        Ok(total)
     }
 
     /// The sizes whose plans are cached.

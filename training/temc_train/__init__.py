@@ -1,1 +1,1 @@
-"""temc's training package: model definitions, loss, colour transform, ONNX export."""
+"""temc's training package: model definitions, loss, colour transform, receptive field, ONNX export."""

@@ -101,16 +101,22 @@ def hsv_to_rgb(hsv):
     return out.astype(np.float32)
 
 
-def encode(rgb, input_scale=1.0, nits_per_unit=NITS_PER_UNIT):
-    """Linear sRGB -> (hsv float32 [...,3], excess float32 [...])."""
+def to_pq(rgb, input_scale=1.0, nits_per_unit=NITS_PER_UNIT):
+    """Linear sRGB -> (PQ R'G'B' float32 [...,3], excess float32 [...]): sanitise, scale to
+    nits, divide by the brightest channel if it passes 10000 cd/m2 (remembered as excess)."""
     k = np.float64(np.float32(input_scale)) * nits_per_unit / PQ_MAX_NITS
     y = sanitize_rgb(rgb) * k
     m = y.max(-1, keepdims=True)
     over = m > 1.0
     y = np.where(over, y / np.where(over, m, 1.0), y)
     excess = np.minimum(np.where(over, m, 1.0)[..., 0], np.finfo(np.float32).max)
-    pq = pq_encode(y).astype(np.float32)
-    return rgb_to_hsv(pq), excess.astype(np.float32)
+    return pq_encode(y).astype(np.float32), excess.astype(np.float32)
+
+
+def encode(rgb, input_scale=1.0, nits_per_unit=NITS_PER_UNIT):
+    """Linear sRGB -> (hsv float32 [...,3], excess float32 [...])."""
+    pq, excess = to_pq(rgb, input_scale, nits_per_unit)
+    return rgb_to_hsv(pq), excess
 
 
 def decode(hsv, excess, input_scale=1.0, nits_per_unit=NITS_PER_UNIT):
@@ -155,6 +161,15 @@ def depth(d, scale):
     with np.errstate(invalid="ignore"):
         out = np.where(np.isnan(d) | (d <= 0), 0.0, np.minimum(d / np.float32(scale), 1.0))
     return out.astype(np.float32)
+
+
+def aux_channels(albedo_img, normal_img, depth_img):
+    """One image's auxiliary buffers ([H,W,3], [H,W,3], [H,W]) -> the network's `aux`
+    [7,H,W] float32. The depth statistic is taken over the whole image, as the core does
+    before tiling."""
+    d = depth(depth_img, depth_scale(depth_img))
+    return np.concatenate([np.moveaxis(albedo(albedo_img), -1, 0),
+                           np.moveaxis(normal(normal_img), -1, 0), d[None]]).astype(np.float32)
 
 
 # --- spectra -------------------------------------------------------------------------

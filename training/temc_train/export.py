@@ -1,24 +1,24 @@
 """Export temc models to ONNX with their metadata, checked against onnxruntime.
 
-    python -m temc_train.export --arch temc2 --width 0.125 --out m.onnx [--variant fused]
+    python -m temc_train.export --arch temc2 --width 0.125 --out m.onnx [--seed S] [--variant fused]
+    python -m temc_train.export --checkpoint run.pt --out m.onnx [--dataset D --train-steps N --test-relmse X]
     python -m temc_train.export --golden ../tests/data
 
-The first form writes one model (random weights unless --checkpoint is given; benchmarks use
-this). The second writes the untrained test models of every architecture and their golden
-input/output tensors for the Rust parity tests (docs/contracts.md §3).
-"""
+The first form writes one model with random weights (benchmarks use this), the second a
+trained one (see load_checkpoint). The third writes the untrained test models of every
+architecture and their golden input/output tensors for the Rust parity tests
+(docs/contracts.md §3)."""
 
 import argparse
-import functools
-import math
 import os
+import warnings
 
 import numpy as np
 import onnx
 import torch
 from torch import nn
 
-from . import fuse
+from . import color, fuse, receptive
 from .models import ALIGNMENT, ARCHS, AUX, CHROMA, LUMA, build
 
 OPSET = 17
@@ -34,52 +34,22 @@ def example_inputs(h: int, w: int, seed: int = 0, batch: int = 1) -> list:
     return [torch.rand(batch, c, h, w, generator=g) for c in CHANNELS]
 
 
-@functools.lru_cache(maxsize=None)
-def receptive_field(arch: str) -> int:
-    """The theoretical receptive field in pixels, measured: the extent of the input region
-    whose gradient on the centre output pixel is non-zero, united over several random
-    inputs (max-pooling routes each gradient through one pixel only). It does not depend on
-    the width, so a narrow instance is used."""
-    torch.manual_seed(0)
-    model = build(arch, GOLDEN_WIDTH).eval()
-    size = 512
-    while True:
-        hit = torch.zeros(size, size, dtype=torch.bool)
-        for seed in range(4):
-            xs = [x.requires_grad_() for x in example_inputs(size, size, seed)]
-            out = model(*xs)
-            out[0, :, size // 2, size // 2].sum().backward()
-            for x in xs:
-                hit |= (x.grad[0].abs() > 0).any(dim=0)
-        rows = hit.any(dim=1).nonzero()
-        cols = hit.any(dim=0).nonzero()
-        touches = rows.min() == 0 or cols.min() == 0 or rows.max() == size - 1 or cols.max() == size - 1
-        if not touches:
-            return int(max(rows.max() - rows.min(), cols.max() - cols.min()) + 1)
-        size *= 2
-
-
-def tile_overlap(rf: int) -> int:
-    """Half the receptive field, rounded up to the alignment."""
-    return int(math.ceil(rf / 2 / ALIGNMENT) * ALIGNMENT)
-
-
 def metadata(arch: str, width: float, dataset: str = "none", steps: int = 0,
-             test_relmse: str = "none", description: str = "") -> dict:
-    rf = receptive_field(arch)
+             test_relmse=None, description: str = "") -> dict:
+    """The contract's metadata_props (docs/contracts.md §2), all values strings."""
     return {
         "temc.format": "1",
         "temc.architecture": arch,
         "temc.width": repr(float(width)),
         "temc.alignment": str(ALIGNMENT),
-        "temc.receptive_field": str(rf),
-        "temc.tile_overlap": str(tile_overlap(rf)),
+        "temc.receptive_field": str(receptive.receptive_field(arch)),
+        "temc.tile_overlap": str(receptive.tile_overlap(arch)),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
-        "temc.pq_nits_per_unit": "100",
+        "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",
         "temc.dataset": dataset,
-        "temc.train_steps": str(steps),
-        "temc.test_relmse": test_relmse,
+        "temc.train_steps": str(int(steps)),
+        "temc.test_relmse": "none" if test_relmse is None else repr(float(test_relmse)),
         "temc.description": description,
     }
 
@@ -138,7 +108,9 @@ def export(model: nn.Module, path: str, meta: dict, variant: str = "plain",
         raise ValueError(f"unknown variant {variant!r}")
     meta = dict(meta, **{"temc.export_variant": variant})
     tmp = path + ".tmp"
-    with torch.no_grad():
+    with torch.no_grad(), warnings.catch_warnings():
+        # The legacy exporter is chosen on purpose (docs/contracts.md §2); it says it is.
+        warnings.filterwarnings("ignore", category=DeprecationWarning)
         torch.onnx.export(
             net, tuple(xs), tmp, opset_version=OPSET, dynamo=False,
             do_constant_folding=True, input_names=list(INPUTS), output_names=["hsv"],
@@ -184,28 +156,66 @@ def write_golden(root: str, seed: int = 7) -> None:
         print(f"{name}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px")
 
 
+def load_checkpoint(path: str, arch=None, width=None):
+    """A model from a checkpoint: torch.save of either a bare state_dict (then arch and
+    width must be given) or a dict {"model": state_dict, "arch", "width", and optionally
+    "dataset", "train_steps", "test_relmse"}. Returns (model, arch, width, info) where info
+    holds the optional fields found."""
+    ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    if "model" in ckpt and isinstance(ckpt["model"], dict):
+        state = ckpt["model"]
+        for key, given in (("arch", arch), ("width", width)):
+            if given is not None and key in ckpt and ckpt[key] != given:
+                raise ValueError(f"{path}: checkpoint has {key} {ckpt[key]!r}, not {given!r}")
+        arch = ckpt.get("arch", arch)
+        width = ckpt.get("width", width)
+        info = {k: ckpt[k] for k in ("dataset", "train_steps", "test_relmse") if k in ckpt}
+    else:
+        state, info = ckpt, {}
+    if arch is None or width is None:
+        raise ValueError(f"{path}: a bare state_dict needs --arch and --width")
+    model = build(arch, float(width))
+    model.load_state_dict(state)
+    return model, arch, float(width), info
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arch", choices=ARCHS)
-    ap.add_argument("--width", type=float, default=1.0)
+    ap.add_argument("--width", type=float, help="width multiplier (default 1.0, or the checkpoint's)")
     ap.add_argument("--out")
+    ap.add_argument("--checkpoint", help="trained weights (see load_checkpoint); random if absent")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random weights")
     ap.add_argument("--variant", choices=("plain", "fused"), default="plain")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--dataset", help="temc.dataset (default: the checkpoint's, else none)")
+    ap.add_argument("--train-steps", type=int, help="temc.train_steps")
+    ap.add_argument("--test-relmse", type=float, help="temc.test_relmse")
+    ap.add_argument("--description", help="temc.description")
     ap.add_argument("--golden", metavar="DIR", help="write test models and goldens under DIR")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
         write_golden(a.golden)
         return
-    if not (a.arch and a.out):
-        ap.error("--arch and --out are required (or --golden DIR)")
-    torch.manual_seed(a.seed)
-    model = build(a.arch, a.width)
-    randomize_batchnorm(model, a.seed)
-    meta = metadata(a.arch, a.width, description=f"untrained {a.arch} at width {a.width} "
-                    f"(seed {a.seed}); for benchmarks only")
+    if not a.out or not (a.arch or a.checkpoint):
+        ap.error("--out and --arch (or --checkpoint) are required, or --golden DIR")
+    if a.checkpoint:
+        model, arch, width, info = load_checkpoint(a.checkpoint, a.arch, a.width)
+        what = f"{arch} at width {width} from {os.path.basename(a.checkpoint)}"
+    else:
+        arch, width, info = a.arch, 1.0 if a.width is None else a.width, {}
+        torch.manual_seed(a.seed)
+        model = build(arch, width)
+        randomize_batchnorm(model, a.seed)
+        what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
+    overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
+    info.update({k: v for k, v in overrides.items() if v is not None})
+    meta = metadata(arch, width, dataset=info.get("dataset", "none"),
+                    steps=info.get("train_steps", 0), test_relmse=info.get("test_relmse"),
+                    description=a.description if a.description is not None else what)
     diff = export(model, a.out, meta, variant=a.variant)
-    print(f"{a.out}: onnxruntime vs PyTorch {diff:.2e}")
+    print(f"{a.out}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px, "
+          f"overlap {meta['temc.tile_overlap']} px")
 
 
 if __name__ == "__main__":

@@ -84,7 +84,7 @@ class Decoder(nn.Module):
     """DEMC's decoder over any number of encoders: at each level the previous decoder output
     and every encoder's skip are concatenated and fused by a linear 1x1 conv."""
 
-    def __init__(self, skip_widths: list, n_encoders: int, cout: int, width: float):
+    def __init__(self, skip_widths: list, n_encoders: int, cout: int):
         super().__init__()
         w = skip_widths  # per level, the same for every encoder
         self.up1 = up(w[4], w[4])
@@ -125,7 +125,7 @@ class DEMCNet(nn.Module):
         self.feat = VGGEncoder(1, width)
         w = self.hdr.widths
         self.latent = latent_block(w[4], w[4])
-        self.decoder = Decoder(w, 2, cout, width)
+        self.decoder = Decoder(w, 2, cout)
 
     def forward(self, x, aux):
         hs, z = self.hdr(x)
@@ -215,7 +215,7 @@ class TEMC2(nn.Module):
         self.enc_a = VGGEncoder(1, width)
         w = self.enc_c.widths
         self.stab = nn.Sequential(latent_block(2 * w[4], w[4]), latent_block(w[4], w[4]))
-        self.decoder = Decoder(w, 3, 3, width)
+        self.decoder = Decoder(w, 3, 3)
 
     def forward(self, chroma, luma, aux):
         cs, zc = self.enc_c(chroma)

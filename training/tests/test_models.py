@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from temc_train.models import ARCHS, build, count_params
+from temc_train.models import ARCHS, AENet, DEMCNet, build, count_params
 
 # Parameter counts at width 1.0, from ../shared/reference/temc-architecture.md:
 # (conv/deconv weights and biases, batch-norm gamma/beta).
@@ -21,6 +21,12 @@ EXPECTED = {
 @pytest.mark.parametrize("arch", ARCHS)
 def test_parameter_counts_match_the_architecture_note(arch):
     assert count_params(build(arch, 1.0)) == EXPECTED[arch]
+
+
+def test_building_blocks_match_the_note():
+    # The note's own configurations: AE 1 -> 1, and DEMC on RGB (3 -> 3) with 7 aux channels.
+    assert count_params(AENet(1, 1, 1.0)) == (1_395_201, 0)
+    assert count_params(DEMCNet(3, 3, 1.0)) == (44_843_268, 4_224)
 
 
 def test_note_totals():

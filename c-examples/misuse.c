@@ -1,0 +1,180 @@
+/* Every misuse of temc's C API gives the documented error code and writes nothing.
+ *   misuse MODEL.onnx        (exit status 0 when every check passes) */
+#include <math.h>
+#include <stdio.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "temc.h"
+#include "pfm.h"
+
+static int failures = 0;
+static int callback_calls = 0;
+
+#define EXPECT(dev, code, what)                                                        \
+  do {                                                                                 \
+    const char* msg = NULL;                                                            \
+    TEMCError got = temcGetDeviceError((dev), &msg);                                   \
+    if (got != (code)) {                                                               \
+      fprintf(stderr, "FAIL %s: expected error %d, got %u (%s)\n", (what), (code),     \
+              (unsigned)got, msg ? msg : "");                                          \
+      ++failures;                                                                      \
+    } else if ((code) != TEMC_ERROR_NONE && (!msg || !*msg)) {                         \
+      fprintf(stderr, "FAIL %s: error without a message\n", (what));                   \
+      ++failures;                                                                      \
+    }                                                                                  \
+  } while (0)
+
+static void on_error(void* user, TEMCError code, const char* message) {
+  (void)code; (void)message;
+  ++*(int*)user;
+}
+
+static bool cancel_at_once(void* user, double n) {
+  (void)user; (void)n;
+  return false;
+}
+
+static int untouched(const float* v, size_t n) {
+  size_t i;
+  for (i = 0; i < n; ++i) if (v[i] != -7.0f) return 0;
+  return 1;
+}
+
+int main(int argc, char** argv) {
+  enum { W = 48, H = 40 };
+  static float color[W * H * 3], out[W * H * 3], small[(W - 1) * H * 3];
+  size_t weights_size = 0, i;
+  void* weights;
+  TEMCDevice dev;
+  TEMCFilter f;
+
+  if (argc != 2 || !(weights = read_file(argv[1], &weights_size))) {
+    fprintf(stderr, "usage: %s MODEL.onnx\n", argv[0]);
+    return 2;
+  }
+  for (i = 0; i < W * H * 3; ++i) color[i] = (float)(i % 17) / 17.0f;
+
+  /* Devices. */
+  if (temcNewDevice(99) != NULL) { fprintf(stderr, "FAIL: bad device type accepted\n"); ++failures; }
+  EXPECT(NULL, TEMC_ERROR_INVALID_ARGUMENT, "bad device type");
+  EXPECT(NULL, TEMC_ERROR_NONE, "error cleared after query");
+  temcCommitDevice(NULL);
+  EXPECT(NULL, TEMC_ERROR_INVALID_ARGUMENT, "NULL device");
+  dev = temcNewDevice(TEMC_DEVICE_TYPE_CPU);
+  temcSetDeviceErrorFunction(dev, on_error, &callback_calls);
+  temcSetDeviceInt(dev, "numThreads", 2);
+  temcSetDeviceInt(dev, "noSuchParam", 1);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown device parameter");
+  temcSetDeviceInt(dev, "numThreads", -1);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "negative thread count");
+
+  /* A filter before the device is committed cannot commit. */
+  f = temcNewFilter(dev, "TEMC2");
+  temcSetSharedFilterData(f, "weights", weights, weights_size);
+  temcCommitFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "commit on an uncommitted device");
+  temcReleaseFilter(f);
+  temcCommitDevice(dev);
+  EXPECT(dev, TEMC_ERROR_NONE, "device commit");
+
+  /* Filters. */
+  if (temcNewFilter(dev, "NOPE") != NULL) { fprintf(stderr, "FAIL: unknown filter\n"); ++failures; }
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown filter type");
+  temcNewFilter(dev, NULL);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "NULL filter type");
+  f = temcNewFilter(dev, "TEMC2");
+  EXPECT(dev, TEMC_ERROR_NONE, "filter creation");
+
+  temcSetSharedFilterImage(f, "colour", color, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown image name");
+  temcSetSharedFilterImage(f, "color", NULL, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "NULL image pointer");
+  temcSetSharedFilterImage(f, "color", color, 77, W, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown format");
+  temcSetSharedFilterImage(f, "color", color, TEMC_FORMAT_FLOAT3, 0, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "zero width");
+  temcSetSharedFilterImage(f, "color", color, TEMC_FORMAT_FLOAT3, W, H, 0, 4, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "pixel stride smaller than a pixel");
+  temcSetSharedFilterImage(f, "color", color, TEMC_FORMAT_FLOAT3, SIZE_MAX, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "huge width");
+  temcSetSharedFilterImage(f, "color", color, TEMC_FORMAT_FLOAT3, W, H, 0, SIZE_MAX / 4, 0);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "overflowing stride");
+  temcSetFilterInt(f, "quality", 3);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown quality");
+  temcSetFilterInt(f, "noSuchParam", 3);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown int parameter");
+  temcSetFilterFloat(f, "inputScale", -1.0f);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "negative input scale");
+  temcSetSharedFilterData(f, "weights", NULL, 10);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "NULL weights");
+
+  /* Execute before commit, commit without weights, garbage weights. */
+  memset(out, 0, sizeof out);
+  for (i = 0; i < W * H * 3; ++i) out[i] = -7.0f;
+  temcSetSharedFilterImage(f, "color", color, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  temcSetSharedFilterImage(f, "output", out, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  EXPECT(dev, TEMC_ERROR_NONE, "image set-up");
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "execute before commit");
+  temcCommitFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "commit without weights");
+  temcSetSharedFilterData(f, "weights", color, sizeof color);
+  temcCommitFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "garbage weights");
+  if (!untouched(out, W * H * 3)) { fprintf(stderr, "FAIL: output written on error\n"); ++failures; }
+
+  /* Missing output, mismatched sizes: errors, and the output stays untouched. */
+  temcSetSharedFilterData(f, "weights", weights, weights_size);
+  temcUnsetFilterImage(f, "output");
+  temcCommitFilter(f);
+  EXPECT(dev, TEMC_ERROR_NONE, "commit with weights");
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "missing output");
+  for (i = 0; i < (W - 1) * H * 3; ++i) small[i] = -7.0f;
+  temcSetSharedFilterImage(f, "output", small, TEMC_FORMAT_FLOAT3, W - 1, H, 0, 0, 0);
+  temcCommitFilter(f);
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "size mismatch");
+  if (!untouched(small, (W - 1) * H * 3)) { fprintf(stderr, "FAIL: output written on mismatch\n"); ++failures; }
+
+  /* Cancellation leaves the output untouched; the filter still works afterwards. */
+  temcSetSharedFilterImage(f, "output", out, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  temcSetFilterProgressMonitorFunction(f, cancel_at_once, NULL);
+  temcCommitFilter(f);
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_CANCELLED, "cancelled by the progress monitor");
+  if (!untouched(out, W * H * 3)) { fprintf(stderr, "FAIL: output written on cancel\n"); ++failures; }
+  temcSetFilterProgressMonitorFunction(f, NULL, NULL);
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_NONE, "execute after cancel");
+  for (i = 0; i < W * H * 3; ++i)
+    if (!isfinite(out[i]) || out[i] < 0) { fprintf(stderr, "FAIL: bad output\n"); ++failures; break; }
+
+  /* In place: output aliasing color. */
+  temcSetSharedFilterImage(f, "output", color, TEMC_FORMAT_FLOAT3, W, H, 0, 0, 0);
+  temcCommitFilter(f);
+  temcExecuteFilter(f);
+  EXPECT(dev, TEMC_ERROR_NONE, "in-place execution");
+  if (memcmp(color, out, sizeof out) != 0) { fprintf(stderr, "FAIL: in-place differs\n"); ++failures; }
+
+  /* Retain and release; use after release is reported, not dereferenced. */
+  temcRetainFilter(f);
+  temcReleaseFilter(f);
+  temcCommitFilter(f);
+  EXPECT(dev, TEMC_ERROR_NONE, "filter alive while retained");
+  temcReleaseFilter(f);
+  temcCommitFilter(f);
+  EXPECT(NULL, TEMC_ERROR_INVALID_ARGUMENT, "filter used after release");
+  temcReleaseFilter(f);
+  EXPECT(NULL, TEMC_ERROR_INVALID_ARGUMENT, "filter released twice");
+
+  if (callback_calls < 10) { fprintf(stderr, "FAIL: error callback called %d times\n", callback_calls); ++failures; }
+  temcReleaseDevice(dev);
+  temcCommitDevice(dev);
+  EXPECT(NULL, TEMC_ERROR_INVALID_ARGUMENT, "device used after release");
+  free(weights);
+  if (failures) { fprintf(stderr, "%d check(s) failed\n", failures); return 1; }
+  printf("misuse: all checks passed\n");
+  return 0;
+}

@@ -1,0 +1,168 @@
+//! The C and C++ examples, compiled with the system compiler against include/temc.h and the
+//! shared library, run as a real C host would: the misuse program asserts every error
+//! code, and the PFM denoiser's output must equal the Rust API's, bit for bit.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use temc::filter::{Device, Filter};
+
+const MODEL: &str = "tests/data/models/temc2_w0.0625.onnx";
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Builds libtemc.so for this test profile and the examples; returns the examples' folder.
+fn build_examples() -> PathBuf {
+    let release = !cfg!(debug_assertions);
+    let mut cargo = Command::new(env!("CARGO"));
+    cargo
+        .current_dir(root())
+        .args(["build", "--lib", "--quiet"]);
+    if release {
+        cargo.arg("--release");
+    }
+    assert!(
+        cargo.status().unwrap().success(),
+        "cargo build --lib failed"
+    );
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    let lib = target.join(if release { "release" } else { "debug" });
+    let out = target.join("c-examples");
+    let status = Command::new("make")
+        .current_dir(root().join("c-examples"))
+        .arg(format!("TEMC_LIB={}", lib.display()))
+        .arg(format!("OUT={}", out.display()))
+        .status()
+        .expect("make");
+    assert!(status.success(), "building c-examples failed");
+    out
+}
+
+fn write_pfm(path: &Path, w: usize, h: usize, rgb: &[f32]) {
+    let mut bytes = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+    for y in (0..h).rev() {
+        for v in &rgb[y * w * 3..(y + 1) * w * 3] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn read_pfm(path: &Path) -> (usize, usize, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let mut fields = Vec::new();
+    let mut pos = 0;
+    while fields.len() < 4 {
+        while bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        fields.push(String::from_utf8(bytes[start..pos].to_vec()).unwrap());
+    }
+    pos += 1;
+    assert_eq!(fields[0], "PF");
+    let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
+    assert!(fields[3].starts_with('-'), "little-endian expected");
+    let vals: Vec<f32> = bytes[pos..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let mut rgb = vec![0f32; w * h * 3];
+    for y in 0..h {
+        let src = &vals[(h - 1 - y) * w * 3..(h - y) * w * 3];
+        rgb[y * w * 3..(y + 1) * w * 3].copy_from_slice(src);
+    }
+    (w, h, rgb)
+}
+
+#[test]
+fn c_examples_build_and_behave() {
+    let bin = build_examples();
+    let model = root().join(MODEL);
+
+    let misuse = Command::new(bin.join("misuse"))
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(
+        misuse.status.success(),
+        "misuse checks failed:\n{}",
+        String::from_utf8_lossy(&misuse.stderr)
+    );
+
+    let cpp = Command::new(bin.join("denoise_cpp"))
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(
+        cpp.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cpp.stderr)
+    );
+
+    // PFM round trip through the C program, against the Rust API on the same inputs.
+    let (w, h) = (75, 50);
+    let color: Vec<f32> = (0..w * h * 3)
+        .map(|i| 0.1 + (i % 29) as f32 * 0.05)
+        .collect();
+    let albedo: Vec<f32> = (0..w * h * 3).map(|i| (i % 7) as f32 / 7.0).collect();
+    let normal: Vec<f32> = (0..w * h * 3)
+        .map(|i| if i % 3 == 2 { 1.0 } else { 0.0 })
+        .collect();
+    let dir = std::env::temp_dir().join(format!("temc-c-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    write_pfm(&dir.join("color.pfm"), w, h, &color);
+    write_pfm(&dir.join("albedo.pfm"), w, h, &albedo);
+    write_pfm(&dir.join("normal.pfm"), w, h, &normal);
+    let run = Command::new(bin.join("denoise"))
+        .arg(&model)
+        .arg(dir.join("color.pfm"))
+        .args(["-a".as_ref(), dir.join("albedo.pfm").as_os_str()])
+        .args(["-n".as_ref(), dir.join("normal.pfm").as_os_str()])
+        .args(["-o".as_ref(), dir.join("out.pfm").as_os_str()])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let (ow, oh, from_c) = read_pfm(&dir.join("out.pfm"));
+    assert_eq!((ow, oh), (w, h));
+
+    let device = Device::new();
+    device.commit().unwrap();
+    let weights = std::fs::read(&model).unwrap();
+    let mut from_rust = vec![0f32; w * h * 3];
+    let mut f = Filter::new(&device, "TEMC2").unwrap();
+    f.set_weights(&weights);
+    f.set_input_f32("color", &color, w, h).unwrap();
+    f.set_input_f32("albedo", &albedo, w, h).unwrap();
+    f.set_input_f32("normal", &normal, w, h).unwrap();
+    f.set_output_f32(&mut from_rust, w, h).unwrap();
+    f.commit().unwrap();
+    f.execute().unwrap();
+    drop(f);
+    assert_eq!(
+        from_c, from_rust,
+        "the C API and the Rust API must agree exactly"
+    );
+
+    // Bad input files give a non-zero exit and no output.
+    std::fs::write(dir.join("bad.pfm"), b"P6\n1 1\n255\n").unwrap();
+    let bad = Command::new(bin.join("denoise"))
+        .arg(&model)
+        .arg(dir.join("bad.pfm"))
+        .args(["-o".as_ref(), dir.join("bad_out.pfm").as_os_str()])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(!dir.join("bad_out.pfm").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,293 @@
+//! The filter through its public Rust API: invariance to tiles and threads, in-place,
+//! non-finite inputs, errors that leave the output untouched, cancellation.
+//! The model is the untrained TEMC-2 test model: these tests are about the machinery,
+//! not about denoising quality.
+
+use temc::color::{self, Exposure};
+use temc::filter::{Device, Filter};
+use temc::Error;
+
+fn weights() -> Vec<u8> {
+    model_file("temc2")
+}
+
+fn model_file(arch: &str) -> Vec<u8> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models");
+    std::fs::read(format!("{dir}/{arch}_w0.0625.onnx")).unwrap()
+}
+
+fn device(threads: usize) -> Device {
+    let d = Device::new();
+    d.set_num_threads(threads);
+    d.commit().unwrap();
+    d
+}
+
+/// A smooth, colourful HDR test image with some structure.
+fn image(w: usize, h: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            let (fx, fy) = (x as f32 / w as f32, y as f32 / h as f32);
+            v.push(0.05 + 2.0 * fx * fx + 0.3 * ((x / 7 + y / 5) % 2) as f32);
+            v.push(0.4 + 0.3 * (fy * 9.0).sin());
+            v.push(0.2 + 5.0 * fx * fy);
+        }
+    }
+    v
+}
+
+struct Run {
+    output: Vec<f32>,
+    tiles: usize,
+}
+
+fn denoise(color: &[f32], w: usize, h: usize, threads: usize, tile: usize) -> Run {
+    denoise_with("temc2", color, w, h, threads, tile)
+}
+
+fn denoise_with(arch: &str, color: &[f32], w: usize, h: usize, threads: usize, tile: usize) -> Run {
+    let dev = device(threads);
+    let model = model_file(arch);
+    let mut output = vec![0f32; w * h * 3];
+    let mut f = Filter::new(&dev, &arch.to_uppercase()).unwrap();
+    f.set_weights(&model);
+    f.set_input_f32("color", color, w, h).unwrap();
+    f.set_output_f32(&mut output, w, h).unwrap();
+    f.set_input_scale(1.0).unwrap();
+    f.set_tile_size(tile);
+    f.commit().unwrap();
+    let stats = f.execute().unwrap();
+    drop(f);
+    Run {
+        output,
+        tiles: stats.tiles,
+    }
+}
+
+/// Largest difference of two linear images after PQ encoding each channel.
+fn max_pq_diff(a: &[f32], b: &[f32]) -> f32 {
+    let pq = |v: f32| color::pq::encode(v as f64 * 100.0 / 10000.0) as f32;
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (pq(*x) - pq(*y)).abs())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn tiled_equals_untiled_within_1e3_pq() {
+    let (w, h) = (1000, 700);
+    let img = image(w, h);
+    let untiled = denoise(&img, w, h, 2, 4096);
+    let tiled = denoise(&img, w, h, 2, 128);
+    assert_eq!(untiled.tiles, 1);
+    assert!(tiled.tiles > 20, "{} tiles", tiled.tiles);
+    let d = max_pq_diff(&untiled.output, &tiled.output);
+    println!("max PQ difference, untiled vs 128-pixel tiles: {d:e}");
+    assert!(d <= 1e-3, "{d}");
+}
+
+#[test]
+fn one_and_two_threads_are_bit_identical() {
+    // The autoencoder's smaller receptive field gives many tiles at a low cost.
+    let (w, h) = (300, 200);
+    let img = image(w, h);
+    let a = denoise_with("ae", &img, w, h, 1, 64);
+    let b = denoise_with("ae", &img, w, h, 2, 64);
+    assert!(a.tiles > 4, "{} tiles", a.tiles);
+    assert_eq!(a.output, b.output);
+}
+
+#[test]
+fn in_place_matches_separate_output() {
+    let (w, h) = (130, 70);
+    let img = image(w, h);
+    let separate = denoise(&img, w, h, 2, 32);
+    let dev = device(2);
+    let model = weights();
+    let mut buf = img.clone();
+    let mut f = Filter::new(&dev, "TEMC2").unwrap();
+    f.set_weights(&model);
+    f.set_input_scale(1.0).unwrap();
+    f.set_tile_size(32);
+    let layout = temc::image::Layout::packed(temc::image::Format::Float3, w, h);
+    // SAFETY: `buf` outlives the filter and is not otherwise used while it runs.
+    unsafe {
+        f.set_shared_image("color", buf.as_mut_ptr() as *mut u8, layout)
+            .unwrap();
+        f.set_shared_image("output", buf.as_mut_ptr() as *mut u8, layout)
+            .unwrap();
+    }
+    f.commit().unwrap();
+    f.execute().unwrap();
+    drop(f);
+    assert_eq!(buf, separate.output);
+}
+
+#[test]
+fn non_finite_and_extreme_inputs_give_finite_output() {
+    let (w, h) = (64, 48);
+    let mut img = image(w, h);
+    img[0] = f32::NAN;
+    img[4] = f32::INFINITY;
+    img[8] = f32::NEG_INFINITY;
+    img[12] = -5.0;
+    img[30] = 1e30;
+    img[60] = f32::from_bits(1);
+    for scale in [None, Some(1e-6), Some(1e6)] {
+        let dev = device(2);
+        let model = weights();
+        let mut out = vec![0f32; w * h * 3];
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_input_f32("color", &img, w, h).unwrap();
+        f.set_output_f32(&mut out, w, h).unwrap();
+        if let Some(s) = scale {
+            f.set_input_scale(s).unwrap();
+        }
+        f.commit().unwrap();
+        f.execute().unwrap();
+        drop(f);
+        assert!(
+            out.iter().all(|v| v.is_finite() && *v >= 0.0),
+            "scale {scale:?}"
+        );
+    }
+}
+
+#[test]
+fn tiny_and_odd_sizes() {
+    for (w, h) in [(1, 1), (1, 37), (33, 1), (31, 33)] {
+        let img = image(w, h);
+        let r = denoise(&img, w, h, 2, 0);
+        assert_eq!(r.output.len(), w * h * 3);
+        assert!(r.output.iter().all(|v| v.is_finite()));
+    }
+}
+
+#[test]
+fn aux_buffers_change_the_result_and_nan_aux_is_harmless() {
+    let (w, h) = (64, 64);
+    let img = image(w, h);
+    let plain = denoise(&img, w, h, 1, 0).output;
+    let dev = device(1);
+    let model = weights();
+    let albedo = vec![0.7f32; w * h * 3];
+    let mut normal = vec![0f32; w * h * 3];
+    for n in normal.chunks_mut(3) {
+        n[2] = 1.0;
+    }
+    normal[0] = f32::NAN;
+    let mut depth = vec![3.0f32; w * h];
+    depth[5] = f32::INFINITY;
+    let mut out = vec![0f32; w * h * 3];
+    let mut f = Filter::new(&dev, "TEMC2").unwrap();
+    f.set_weights(&model);
+    f.set_input_f32("color", &img, w, h).unwrap();
+    f.set_input_f32("albedo", &albedo, w, h).unwrap();
+    f.set_input_f32("normal", &normal, w, h).unwrap();
+    f.set_input_f32("depth", &depth, w, h).unwrap();
+    f.set_output_f32(&mut out, w, h).unwrap();
+    f.set_input_scale(1.0).unwrap();
+    f.commit().unwrap();
+    f.execute().unwrap();
+    drop(f);
+    assert!(out.iter().all(|v| v.is_finite()));
+    assert_ne!(out, plain);
+}
+
+#[test]
+fn errors_leave_the_output_untouched() {
+    let (w, h) = (40, 30);
+    let img = image(w, h);
+    let dev = device(1);
+    let model = weights();
+    let sentinel = vec![-7.0f32; w * h * 3];
+
+    // Execute before commit.
+    let mut out = sentinel.clone();
+    {
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_input_f32("color", &img, w, h).unwrap();
+        f.set_output_f32(&mut out, w, h).unwrap();
+        assert!(matches!(f.execute(), Err(Error::InvalidOperation(_))));
+    }
+    assert_eq!(out, sentinel);
+
+    // Size mismatch between color and output.
+    let mut small = vec![-7.0f32; (w - 1) * h * 3];
+    {
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_input_f32("color", &img, w, h).unwrap();
+        f.set_output_f32(&mut small, w - 1, h).unwrap();
+        f.commit().unwrap();
+        assert!(matches!(f.execute(), Err(Error::InvalidArgument(_))));
+    }
+    assert!(small.iter().all(|&v| v == -7.0));
+
+    // Missing color; buffers too short for their layout; unknown names; wrong model type.
+    let mut out = sentinel.clone();
+    {
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_output_f32(&mut out, w, h).unwrap();
+        f.commit().unwrap();
+        assert!(matches!(f.execute(), Err(Error::InvalidOperation(_))));
+        assert!(f.set_input_f32("color", &img[3..], w, h).is_err());
+        assert!(f.set_input_f32("colour", &img, w, h).is_err());
+        assert!(f.set_int("quality", 3).is_err());
+        assert!(f.set_input_scale(-1.0).is_err());
+        assert!(f.set_float("inputScale", f32::INFINITY).is_err());
+    }
+    assert_eq!(out, sentinel);
+    assert!(Filter::new(&dev, "OIDN").is_err());
+    let mut demc = Filter::new(&dev, "DEMC").unwrap();
+    demc.set_weights(&model);
+    assert!(matches!(demc.commit(), Err(Error::InvalidArgument(_))));
+    let mut none = Filter::new(&dev, "TEMC2").unwrap();
+    assert!(matches!(none.commit(), Err(Error::InvalidOperation(_))));
+    let mut bad = Filter::new(&dev, "TEMC2").unwrap();
+    bad.set_weights(b"garbage");
+    assert!(bad.commit().is_err());
+}
+
+#[test]
+fn cancellation_leaves_no_output_and_the_filter_usable() {
+    let (w, h) = (200, 150);
+    let img = image(w, h);
+    let dev = device(2);
+    let model = weights();
+    let sentinel = vec![-7.0f32; w * h * 3];
+    let mut out = sentinel.clone();
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    {
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_input_f32("color", &img, w, h).unwrap();
+        f.set_output_f32(&mut out, w, h).unwrap();
+        f.set_tile_size(32);
+        f.set_progress_monitor(|p| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            p < 0.3
+        });
+        f.commit().unwrap();
+        assert!(matches!(f.execute(), Err(Error::Cancelled)));
+        f.unset_progress_monitor();
+        f.execute().unwrap();
+    }
+    assert!(calls.load(std::sync::atomic::Ordering::SeqCst) >= 1);
+    assert!(out.iter().all(|v| v.is_finite() && *v >= 0.0));
+}
+
+#[test]
+fn output_is_the_colour_pipeline_inverse_of_the_network() {
+    // A constant grey image: whatever the network predicts, the output is a valid decode,
+    // so every pixel is finite and within the PQ range's linear image.
+    let (w, h) = (32, 32);
+    let img = vec![0.18f32; w * h * 3];
+    let r = denoise(&img, w, h, 1, 0);
+    let max = color::decode([0.0, 0.0, 1.0], 1.0, Exposure::default())[0];
+    assert!(r.output.iter().all(|&v| (0.0..=max).contains(&v)));
+}
