@@ -15,6 +15,7 @@ pub mod engine;
 mod error;
 pub mod filter;
 pub mod image;
+pub mod io;
 pub mod tile;
 
 pub use error::{Error, Result};

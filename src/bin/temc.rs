@@ -1,12 +1,13 @@
-//! The `temc` command line.
-//!
-//! `temc info MODEL.onnx` prints a model's card; `temc denoise` and `temc demo` arrive with
-//! the filter and the trained default model.
+//! The `temc` command line: `temc denoise` on PFM and EXR files, `temc info` on models.
 
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
 use temc::engine::Model;
+use temc::filter::{Device, Filter, Quality};
+use temc::io::{self, Buffers};
 
 #[derive(Parser)]
 #[command(
@@ -19,12 +20,58 @@ struct Cli {
     command: Command,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum QualityArg {
+    Fast,
+    Balanced,
+    High,
+}
+
 #[derive(Subcommand)]
 enum Command {
+    /// Denoise an image (PFM or EXR; multi-layer EXR may carry the aux buffers too).
+    Denoise {
+        /// Noisy colour: PFM, single-layer EXR, or multi-layer EXR (temc-render or Blender).
+        #[arg(long)]
+        color: PathBuf,
+        /// Albedo (overrides one found in the colour file).
+        #[arg(long)]
+        albedo: Option<PathBuf>,
+        /// Shading normal (overrides one found in the colour file).
+        #[arg(long)]
+        normal: Option<PathBuf>,
+        /// Depth, a one-channel file (overrides one found in the colour file).
+        #[arg(long)]
+        depth: Option<PathBuf>,
+        /// Output file, .pfm or .exr; written atomically.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// A temc ONNX model file (no trained model is built in yet).
+        #[arg(long)]
+        model: Option<String>,
+        /// Quality mode (selects among built-in models once they ship).
+        #[arg(long, value_enum)]
+        quality: Option<QualityArg>,
+        /// Input scale (default: automatic exposure).
+        #[arg(long)]
+        input_scale: Option<f32>,
+        /// Worker threads (default: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Memory budget in MB.
+        #[arg(long, default_value_t = temc::filter::DEFAULT_MAX_MEMORY_MB)]
+        max_memory_mb: usize,
+        /// Tile core size in pixels (default: from the memory budget).
+        #[arg(long, default_value_t = 0)]
+        tile_size: usize,
+        /// Print timings, tiles and peak memory as JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Print the metadata (model card) of a temc ONNX model.
     Info {
         /// Path to the .onnx file.
-        model: std::path::PathBuf,
+        model: PathBuf,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -43,22 +90,191 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> temc::Result<()> {
     match cli.command {
-        Command::Info { model, json } => {
-            let m = Model::from_path(&model)?;
-            let info = m.info();
+        Command::Info { model, json } => info(&model, json),
+        Command::Denoise {
+            color,
+            albedo,
+            normal,
+            depth,
+            output,
+            model,
+            quality,
+            input_scale,
+            threads,
+            max_memory_mb,
+            tile_size,
+            json,
+        } => {
+            let t0 = Instant::now();
+            let mut bufs = io::read(&color)?;
+            if bufs.color.is_none() {
+                return Err(temc::Error::InvalidArgument(format!(
+                    "{}: no colour channels found",
+                    color.display()
+                )));
+            }
+            let mut aux = |path: &Option<PathBuf>,
+                           pick: fn(Buffers) -> Option<Vec<f32>>,
+                           what: &str|
+             -> temc::Result<()> {
+                let Some(p) = path else { return Ok(()) };
+                let b = io::read(p)?;
+                if (b.width, b.height) != (bufs.width, bufs.height) {
+                    return Err(temc::Error::InvalidArgument(format!(
+                        "{}: {what} is {}x{}, colour is {}x{}",
+                        p.display(),
+                        b.width,
+                        b.height,
+                        bufs.width,
+                        bufs.height
+                    )));
+                }
+                let v = pick(b).ok_or_else(|| {
+                    temc::Error::InvalidArgument(format!(
+                        "{}: no {what} channels found",
+                        p.display()
+                    ))
+                })?;
+                match what {
+                    "albedo" => bufs.albedo = Some(v),
+                    "normal" => bufs.normal = Some(v),
+                    _ => bufs.depth = Some(v),
+                }
+                Ok(())
+            };
+            aux(&albedo, |b| b.albedo.or(b.color), "albedo")?;
+            aux(&normal, |b| b.normal.or(b.color), "normal")?;
+            aux(&depth, |b| b.depth, "depth")?;
+            let read_s = t0.elapsed().as_secs_f64();
+
+            let Some(model) = model else {
+                return Err(temc::Error::InvalidOperation(
+                    "no trained model is built into this version yet: pass --model FILE.onnx"
+                        .into(),
+                ));
+            };
+            let weights = std::fs::read(&model).map_err(|source| temc::Error::Io {
+                path: model.clone().into(),
+                source,
+            })?;
+            let kind = Model::from_bytes(&weights)?
+                .info()
+                .architecture
+                .to_ascii_uppercase();
+
+            let device = Device::new();
+            device.set_num_threads(threads);
+            device.commit()?;
+            let (w, h) = (bufs.width, bufs.height);
+            let mut out = vec![0f32; w * h * 3];
+            let t1 = Instant::now();
+            let stats = {
+                let mut f = Filter::new(&device, &kind)?;
+                f.set_weights(&weights);
+                f.set_input_f32("color", bufs.color.as_deref().unwrap_or_default(), w, h)?;
+                if let Some(a) = &bufs.albedo {
+                    f.set_input_f32("albedo", a, w, h)?;
+                }
+                if let Some(n) = &bufs.normal {
+                    f.set_input_f32("normal", n, w, h)?;
+                }
+                if let Some(d) = &bufs.depth {
+                    f.set_input_f32("depth", d, w, h)?;
+                }
+                f.set_output_f32(&mut out, w, h)?;
+                if let Some(q) = quality {
+                    f.set_quality(match q {
+                        QualityArg::Fast => Quality::Fast,
+                        QualityArg::Balanced => Quality::Balanced,
+                        QualityArg::High => Quality::High,
+                    });
+                }
+                if let Some(s) = input_scale {
+                    f.set_input_scale(s)?;
+                }
+                f.set_max_memory_mb(max_memory_mb);
+                f.set_tile_size(tile_size);
+                let bar = progress_bar(json);
+                if let Some(bar) = bar.clone() {
+                    f.set_progress_monitor(move |p| {
+                        bar.set_position((p * 1000.0) as u64);
+                        true
+                    });
+                }
+                f.commit()?;
+                let stats = f.execute()?;
+                if let Some(bar) = bar {
+                    bar.finish_and_clear();
+                }
+                stats
+            };
+            let denoise_s = t1.elapsed().as_secs_f64();
+            let t2 = Instant::now();
+            io::write_rgb(&output, w, h, &out)?;
+            let write_s = t2.elapsed().as_secs_f64();
             if json {
-                let text = serde_json::to_string_pretty(&info.raw).expect("string map");
-                println!("{text}");
+                let report = serde_json::json!({
+                    "color": color, "output": output, "model": model,
+                    "width": w, "height": h,
+                    "aux": {"albedo": bufs.albedo.is_some(), "normal": bufs.normal.is_some(), "depth": bufs.depth.is_some()},
+                    "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
+                    "cost_ratio": stats.cost_ratio, "threads": stats.threads,
+                    "input_scale": stats.input_scale,
+                    "seconds": {"read": read_s, "denoise": denoise_s, "write": write_s},
+                    "estimated_peak_mb": stats.estimated_peak_bytes / 1e6,
+                    "peak_rss_mb": peak_rss_mb(),
+                });
+                println!("{report}");
             } else {
-                println!("{}", model.display());
-                for (k, v) in &info.raw {
-                    println!("  {k:<24} {v}");
-                }
-                if info.is_untrained() {
-                    println!("  (untrained weights: for tests and benchmarks only)");
-                }
+                eprintln!(
+                    "temc: {} -> {} ({w}x{h}, {} tile(s), {denoise_s:.2} s)",
+                    color.display(),
+                    output.display(),
+                    stats.tiles
+                );
             }
             Ok(())
         }
     }
+}
+
+fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    if json || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("denoising {bar:40} {percent}% ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    Some(bar)
+}
+
+/// Peak resident memory of this process (VmHWM), where the OS reports it.
+fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+fn info(model: &Path, json: bool) -> temc::Result<()> {
+    let m = Model::from_path(model)?;
+    let info = m.info();
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&info.raw).expect("string map")
+        );
+    } else {
+        println!("{}", model.display());
+        for (k, v) in &info.raw {
+            println!("  {k:<24} {v}");
+        }
+        if info.is_untrained() {
+            println!("  (untrained weights: for tests and benchmarks only)");
+        }
+    }
+    Ok(())
 }

@@ -1,0 +1,133 @@
+//! `temc denoise` end to end on PFM and EXR files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const MODEL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/models/temc2_w0.0625.onnx"
+);
+
+fn temc() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_temc"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("temc-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn image(w: usize, h: usize) -> Vec<f32> {
+    (0..w * h * 3)
+        .map(|i| 0.05 + ((i * 7919) % 101) as f32 / 50.0)
+        .collect()
+}
+
+fn finite_rgb(path: &Path) -> (usize, usize, Vec<f32>) {
+    let b = temc::io::read(path).unwrap();
+    let c = b.color.unwrap();
+    assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0));
+    (b.width, b.height, c)
+}
+
+#[test]
+fn denoise_pfm_and_exr_with_json_report() {
+    let d = scratch("formats");
+    let (w, h) = (70, 45);
+    temc::io::write_rgb(&d.join("in.pfm"), w, h, &image(w, h)).unwrap();
+    temc::io::write_rgb(&d.join("in.exr"), w, h, &image(w, h)).unwrap();
+    temc::io::write_rgb(&d.join("albedo.pfm"), w, h, &vec![0.5; w * h * 3]).unwrap();
+    for (input, output) in [
+        ("in.pfm", "out.pfm"),
+        ("in.exr", "out.exr"),
+        ("in.pfm", "out2.exr"),
+    ] {
+        let out = temc()
+            .args(["denoise", "--model", MODEL, "--json", "--threads", "2"])
+            .arg("--color")
+            .arg(d.join(input))
+            .arg("--albedo")
+            .arg(d.join("albedo.pfm"))
+            .arg("-o")
+            .arg(d.join(output))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["width"], w);
+        assert_eq!(report["aux"]["albedo"], true);
+        assert!(report["tiles"].as_u64().unwrap() >= 1);
+        assert!(report["seconds"]["denoise"].as_f64().unwrap() > 0.0);
+        assert!(report["peak_rss_mb"].as_f64().unwrap() > 0.0);
+        let (ow, oh, _) = finite_rgb(&d.join(output));
+        assert_eq!((ow, oh), (w, h));
+    }
+    // Same input through PFM and EXR gives the same pixels.
+    assert_eq!(
+        finite_rgb(&d.join("out.pfm")).2,
+        finite_rgb(&d.join("out.exr")).2
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn failures_exit_non_zero_and_leave_no_output() {
+    let d = scratch("fail");
+    temc::io::write_rgb(&d.join("in.pfm"), 20, 10, &image(20, 10)).unwrap();
+    temc::io::write_rgb(&d.join("albedo.pfm"), 21, 10, &image(21, 10)).unwrap();
+    std::fs::write(d.join("garbage.exr"), b"definitely not an exr").unwrap();
+    let cases: Vec<Vec<PathBuf>> = vec![
+        vec!["--color".into(), d.join("missing.pfm")],
+        vec!["--color".into(), d.join("garbage.exr")],
+        vec![
+            "--color".into(),
+            d.join("in.pfm"),
+            "--albedo".into(),
+            d.join("albedo.pfm"),
+        ],
+    ];
+    for args in cases {
+        let out = temc()
+            .args(["denoise", "--model", MODEL])
+            .args(&args)
+            .arg("-o")
+            .arg(d.join("out.pfm"))
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with("temc: "), "{err}");
+        assert!(!d.join("out.pfm").exists(), "{args:?} left an output");
+    }
+    // No model: a clear message, not a crash.
+    let out = temc()
+        .args(["denoise", "--color"])
+        .arg(d.join("in.pfm"))
+        .arg("-o")
+        .arg(d.join("out.pfm"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--model"));
+    // No temporary files left behind by any of it.
+    let leftovers: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn info_prints_the_model_card() {
+    let out = temc().args(["info", MODEL, "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let card: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(card["temc.architecture"], "temc2");
+}
