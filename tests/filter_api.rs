@@ -90,10 +90,10 @@ fn tiled_equals_untiled_within_1e3_pq() {
 #[test]
 fn one_and_two_threads_are_bit_identical() {
     // The autoencoder's smaller receptive field gives many tiles at a low cost.
-    let (w, h) = (300, 200);
+    let (w, h) = (500, 300);
     let img = image(w, h);
-    let a = denoise_with("ae", &img, w, h, 1, 64);
-    let b = denoise_with("ae", &img, w, h, 2, 64);
+    let a = denoise_with("ae", &img, w, h, 1, 96);
+    let b = denoise_with("ae", &img, w, h, 2, 96);
     assert!(a.tiles > 4, "{} tiles", a.tiles);
     assert_eq!(a.output, b.output);
 }

@@ -7,6 +7,7 @@ use std::time::Instant;
 use clap::{Parser, Subcommand, ValueEnum};
 use temc::engine::Model;
 use temc::filter::{Device, Filter, Quality};
+use temc::image::{Format, Layout};
 use temc::io::{self, Buffers};
 
 #[derive(Parser)]
@@ -58,7 +59,7 @@ enum Command {
         /// Worker threads (default: all cores).
         #[arg(long, default_value_t = 0)]
         threads: usize,
-        /// Memory budget in MB.
+        /// Memory budget in MB for the whole run (input buffers included).
         #[arg(long, default_value_t = temc::filter::DEFAULT_MAX_MEMORY_MB)]
         max_memory_mb: usize,
         /// Tile core size in pixels (default: from the memory budget).
@@ -79,7 +80,13 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    if let Command::Denoise { max_memory_mb, .. } = &cli.command {
+        if *max_memory_mb < temc::filter::DEFAULT_MAX_MEMORY_MB {
+            limit_heap_retention();
+        }
+    }
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("temc: {e}");
@@ -166,22 +173,42 @@ fn run(cli: Cli) -> temc::Result<()> {
             device.set_num_threads(threads);
             device.commit()?;
             let (w, h) = (bufs.width, bufs.height);
-            let mut out = vec![0f32; w * h * 3];
+            // Aux buffers are noise-free guides: half floats keep them at half the memory.
+            let to_half = |v: Option<Vec<f32>>| {
+                v.map(|v| v.into_iter().map(half::f16::from_f32).collect::<Vec<_>>())
+            };
+            let color_buf = bufs.color.take().unwrap_or_default();
+            let (albedo_h, normal_h, depth_h) = (
+                to_half(bufs.albedo.take()),
+                to_half(bufs.normal.take()),
+                to_half(bufs.depth.take()),
+            );
+            let held = color_buf.len() * 4
+                + [&albedo_h, &normal_h, &depth_h]
+                    .iter()
+                    .map(|b| b.as_ref().map_or(0, |v| v.len() * 2))
+                    .sum::<usize>();
+            // --max-memory-mb bounds the whole run: the filter gets what the buffers held
+            // here leave of it.
+            let filter_mb = max_memory_mb.saturating_sub(held >> 20).max(64);
             let t1 = Instant::now();
-            let stats = {
+            let (out, stats) = {
                 let mut f = Filter::new(&device, &kind)?;
                 f.set_weights(&weights);
-                f.set_input_f32("color", bufs.color.as_deref().unwrap_or_default(), w, h)?;
-                if let Some(a) = &bufs.albedo {
-                    f.set_input_f32("albedo", a, w, h)?;
+                f.set_input_f32("color", &color_buf, w, h)?;
+                for (name, buf, format) in [
+                    ("albedo", &albedo_h, Format::Half3),
+                    ("normal", &normal_h, Format::Half3),
+                    ("depth", &depth_h, Format::Half),
+                ] {
+                    if let Some(v) = buf {
+                        // SAFETY: f16 is two plain bytes; the view lives as long as `v`.
+                        let bytes = unsafe {
+                            std::slice::from_raw_parts(v.as_ptr() as *const u8, v.len() * 2)
+                        };
+                        f.set_input(name, bytes, Layout::packed(format, w, h))?;
+                    }
                 }
-                if let Some(n) = &bufs.normal {
-                    f.set_input_f32("normal", n, w, h)?;
-                }
-                if let Some(d) = &bufs.depth {
-                    f.set_input_f32("depth", d, w, h)?;
-                }
-                f.set_output_f32(&mut out, w, h)?;
                 if let Some(q) = quality {
                     f.set_quality(match q {
                         QualityArg::Fast => Quality::Fast,
@@ -192,7 +219,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                 if let Some(s) = input_scale {
                     f.set_input_scale(s)?;
                 }
-                f.set_max_memory_mb(max_memory_mb);
+                f.set_max_memory_mb(filter_mb);
                 f.set_tile_size(tile_size);
                 let bar = progress_bar(json);
                 if let Some(bar) = bar.clone() {
@@ -202,11 +229,11 @@ fn run(cli: Cli) -> temc::Result<()> {
                     });
                 }
                 f.commit()?;
-                let stats = f.execute()?;
+                let result = f.execute_to_vec()?;
                 if let Some(bar) = bar {
                     bar.finish_and_clear();
                 }
-                stats
+                result
             };
             let denoise_s = t1.elapsed().as_secs_f64();
             let t2 = Instant::now();
@@ -216,7 +243,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                 let report = serde_json::json!({
                     "color": color, "output": output, "model": model,
                     "width": w, "height": h,
-                    "aux": {"albedo": bufs.albedo.is_some(), "normal": bufs.normal.is_some(), "depth": bufs.depth.is_some()},
+                    "aux": {"albedo": albedo_h.is_some(), "normal": normal_h.is_some(), "depth": depth_h.is_some()},
                     "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
                     "cost_ratio": stats.cost_ratio, "threads": stats.threads,
                     "input_scale": stats.input_scale,
@@ -249,6 +276,19 @@ fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     Some(bar)
+}
+
+/// Used when a budget below the default is asked for. glibc raises its mmap threshold
+/// each time a large block is freed, after which tract's per-op tensors come from the heap
+/// and stay resident: one 832x832 TEMC-2 tile peaked at 423 MB with glibc's default and
+/// at 175 MB with a fixed 1 MB threshold, which costs about 1.6x in time (page faults on
+/// fresh mappings). The library leaves this process-wide choice to its host.
+fn limit_heap_retention() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only tunes the allocator; called before any thread starts.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
+    }
 }
 
 /// Peak resident memory of this process (VmHWM), where the OS reports it.

@@ -171,31 +171,71 @@ impl Model {
         Ok(plan)
     }
 
-    /// A conservative model of the memory one run needs: `(fixed bytes, bytes per pixel)`,
-    /// from the sum of every node's output at two tile sizes (as if nothing were freed;
-    /// tract frees tensors after their last use, so real peaks are lower). Computed once.
+    /// The memory one run needs, as `(weight bytes, activation bytes per pixel)`: weights
+    /// are shared by every run of the model; activations are the peak of tensors alive at
+    /// once when the plan's nodes run in order and each output is freed after its last
+    /// consumer (tract's own policy), measured at two tile sizes. Computed once.
     pub fn memory_estimate(&self) -> Result<(f64, f64), Error> {
         if let Some(e) = self.memory.get() {
             return Ok(*e);
         }
         let a = self.info.alignment;
         let (s1, s2) = (2 * a, 4 * a);
-        let b1 = self.plan_bytes(s1)?;
-        let b2 = self.plan_bytes(s2)?;
-        let per_px = ((b2 - b1) / ((s2 * s2 - s1 * s1) as f64)).max(0.0);
-        let fixed = (b1 - per_px * (s1 * s1) as f64).max(0.0);
-        Ok(*self.memory.get_or_init(|| (fixed, per_px)))
+        let (weights, p1) = self.plan_bytes(s1)?;
+        let (_, p2) = self.plan_bytes(s2)?;
+        let per_px = ((p2 - p1) / ((s2 * s2 - s1 * s1) as f64)).max(p2 / (s2 * s2) as f64);
+        Ok(*self.memory.get_or_init(|| (weights, per_px)))
     }
 
-    fn plan_bytes(&self, s: usize) -> Result<f64, Error> {
+    /// (constant bytes, peak live activation bytes) of the plan for an s x s tile.
+    fn plan_bytes(&self, s: usize) -> Result<(f64, f64), Error> {
         let plan = self.plan(s, s)?;
-        let mut total = 0.0;
-        for node in plan.model().nodes() {
-            for o in &node.outputs {
-                if let Some(shape) = o.fact.shape.as_concrete() {
-                    total +=
-                        shape.iter().product::<usize>() as f64 * o.fact.datum_type.size_of() as f64;
-                }
+        let model = plan.model();
+        let bytes = |n: usize| -> f64 {
+            model
+                .node(n)
+                .outputs
+                .iter()
+                .map(|o| {
+                    o.fact
+                        .shape
+                        .as_concrete()
+                        .map_or(0.0, |sh| sh.iter().product::<usize>() as f64)
+                        * o.fact.datum_type.size_of() as f64
+                })
+                .sum()
+        };
+        let order = plan.order_without_consts();
+        let step: HashMap<usize, usize> = order.iter().enumerate().map(|(i, &n)| (n, i)).collect();
+        let outputs: Vec<usize> = model
+            .output_outlets()
+            .map_err(model_err("outputs"))?
+            .iter()
+            .map(|o| o.node)
+            .collect();
+        // Last step at which each node's outputs are read.
+        let mut last_use = vec![0usize; model.nodes().len()];
+        for (i, &n) in order.iter().enumerate() {
+            for input in &model.node(n).inputs {
+                last_use[input.node] = last_use[input.node].max(i);
+            }
+        }
+        let consts: f64 = (0..model.nodes().len())
+            .filter(|n| !step.contains_key(n))
+            .map(bytes)
+            .sum();
+        let (mut live, mut peak) = (0.0f64, 0.0f64);
+        let mut freed_at: Vec<Vec<usize>> = vec![Vec::new(); order.len()];
+        for &n in order {
+            if !outputs.contains(&n) && last_use[n] >= step[&n] {
+                freed_at[last_use[n]].push(n);
+            }
+        }
+        for (i, &n) in order.iter().enumerate() {
+            live += bytes(n);
+            peak = peak.max(live);
+            for &f in &freed_at[i] {
+                live -= bytes(f);
             }
         }
         // The size-specific plan was only for measuring; do not keep it cached.
@@ -203,7 +243,7 @@ impl Model {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .remove(&(s, s));
-        Ok(total)
+        Ok((consts, peak))
     }
 
     /// The sizes whose plans are cached.

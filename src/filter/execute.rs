@@ -73,17 +73,18 @@ impl SyncPtr {
     }
 }
 
+/// Runs the job. With an "output" image the result is written there and `None` returned;
+/// without one, the packed RGB result is returned instead.
 pub(super) fn run(
     job: Job<'_>,
     pool: &rayon::ThreadPool,
     monitor: Option<&mut Monitor<'_>>,
-) -> Result<ExecuteStats, Error> {
+) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
     let model = job.model.as_ref();
     let info = model.info();
     let color = job.images[ImageName::Color as usize]
         .ok_or_else(|| Error::InvalidOperation("image \"color\" is not set".into()))?;
-    let output = job.images[ImageName::Output as usize]
-        .ok_or_else(|| Error::InvalidOperation("image \"output\" is not set".into()))?;
+    let output = job.images[ImageName::Output as usize];
     let (w, h) = (color.layout.width, color.layout.height);
     for (i, img) in job.images.iter().enumerate() {
         let Some(img) = img else { continue };
@@ -121,7 +122,7 @@ pub(super) fn run(
         let Some(img) = job.images[i as usize] else {
             return Ok(None);
         };
-        if !overlaps(&img, &output) {
+        if !output.as_ref().is_some_and(|o| overlaps(&img, o)) {
             return Ok(Some(Source { img, _copy: None }));
         }
         let mut copy = Vec::new();
@@ -166,10 +167,10 @@ pub(super) fn run(
 
     // Tile size from the memory budget.
     let threads = pool.current_num_threads().max(1);
-    let (fixed, per_px) = model.memory_estimate()?;
+    let (weights, per_px) = model.memory_estimate()?;
     let per_px = per_px + TILE_PLANES * 4.0;
     let staging = (w * h * 12 + snapshot_bytes) as f64;
-    let per_thread = (job.max_memory_bytes as f64 - staging) / threads as f64 - fixed;
+    let per_thread = (job.max_memory_bytes as f64 - staging - weights) / threads as f64;
     let overlap = info.tile_overlap.div_ceil(info.alignment) * info.alignment;
     let side = if job.tile_size > 0 {
         job.tile_size.div_ceil(info.alignment) * info.alignment + 2 * overlap
@@ -181,7 +182,7 @@ pub(super) fn run(
     let plan = TilePlan::new(w, h, info.alignment, info.tile_overlap, side)?;
     let concurrent = threads.min(plan.tiles.len());
     let (tw, th) = plan.window;
-    let estimated_peak = staging + concurrent as f64 * (fixed + per_px * (tw * th) as f64);
+    let estimated_peak = staging + weights + concurrent as f64 * per_px * (tw * th) as f64;
     if job.verbose > 0 {
         eprintln!(
             "temc: {w}x{h}, {} tile(s) of {tw}x{th} (cost x{:.2}), {threads} thread(s), input scale {input_scale}, ~{:.0} MB",
@@ -287,6 +288,17 @@ pub(super) fn run(
         return Err(Error::Cancelled);
     }
 
+    let stats = ExecuteStats {
+        tiles: n_tiles,
+        window: plan.window,
+        cost_ratio: plan.cost_ratio(),
+        input_scale,
+        threads,
+        estimated_peak_bytes: estimated_peak,
+    };
+    let Some(output) = output else {
+        return Ok((stats, Some(staged)));
+    };
     // Every tile succeeded: now, and only now, write the caller's output.
     let layout: Layout = output.layout;
     for y in 0..h {
@@ -304,14 +316,7 @@ pub(super) fn run(
             };
         }
     }
-    Ok(ExecuteStats {
-        tiles: n_tiles,
-        window: plan.window,
-        cost_ratio: plan.cost_ratio(),
-        input_scale,
-        threads,
-        estimated_peak_bytes: estimated_peak,
-    })
+    Ok((stats, None))
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@
 //! filter.set_output_f32(&mut output, w, h).unwrap();
 //! filter.commit().unwrap();
 //! filter.execute().unwrap();
+//! drop(filter); // ends the borrow of `output`
 //! assert!(output.iter().all(|v| v.is_finite()));
 //! ```
 
@@ -542,6 +543,28 @@ impl<'a> Filter<'a> {
     /// Denoises `color` (with the aux images set) into `output`. On any error, including
     /// cancellation, the output is left untouched.
     pub fn execute(&mut self) -> Result<ExecuteStats, Error> {
+        if self.images[ImageName::Output.index()].is_none() {
+            return Err(Error::InvalidOperation(
+                "image \"output\" is not set".into(),
+            ));
+        }
+        self.run().map(|(stats, _)| stats)
+    }
+
+    /// Denoises `color` and returns the result as packed RGB f32 instead of writing an
+    /// "output" image (which must not be set); saves a full-size buffer for callers that
+    /// would only copy the output elsewhere.
+    pub fn execute_to_vec(&mut self) -> Result<(Vec<f32>, ExecuteStats), Error> {
+        if self.images[ImageName::Output.index()].is_some() {
+            return Err(Error::InvalidOperation(
+                "execute_to_vec returns the result itself: unset \"output\" first".into(),
+            ));
+        }
+        let (stats, v) = self.run()?;
+        Ok((v.expect("no output image: the result is returned"), stats))
+    }
+
+    fn run(&mut self) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
         let model = self.committed.clone().ok_or_else(|| {
             Error::InvalidOperation(
                 "the filter is not committed (call commit after changes)".into(),
