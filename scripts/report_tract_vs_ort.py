@@ -135,6 +135,45 @@ def main():
         w(f"Best tract/onnxruntime ratio per configuration ranges from **{lo:.2f}x** to "
           f"**{hi:.2f}x** (target: 0.8x).")
         w("")
+    # A summary computed from the rows above, so it regenerates with them.
+    def tract_rate(width, size, threads, step):
+        r = [x for x in by.get((width, size, threads, step), []) if x["engine"] == "tract"]
+        return r[0]["mpix_per_s"] if r else None
+    fused_gain = []
+    tile_gain = []
+    for (width, size, threads) in keys:
+        a, b = tract_rate(width, size, threads, "plain"), tract_rate(width, size, threads, "fused")
+        if a and b:
+            fused_gain.append(b / a - 1)
+    for width in sorted({k[0] for k in keys}):
+        for threads in (1, 2):
+            a, b = tract_rate(width, 256, threads, "fused"), tract_rate(width, 1024, threads, "fused")
+            if a and b:
+                tile_gain.append((width, threads, a / b - 1))
+    w("## Summary")
+    w("")
+    if best_ratio:
+        w(f"- tract reaches {min(best_ratio.values()):.2f}x to {max(best_ratio.values()):.2f}x of "
+          "onnxruntime's throughput on these graphs; the 0.8x target is **not** met.")
+    if fused_gain:
+        w(f"- The fused export changes tract's throughput by {100 * min(fused_gain):+.0f} % to "
+          f"{100 * max(fused_gain):+.0f} % (BatchNorm after the transposed convs and the skip Concats "
+          "were a small share of the time).")
+    for width, threads, g in tile_gain:
+        w(f"- Width {width}, {threads} thread(s): 256x256 tiles give {100 * g:+.0f} % pixels per second "
+          "against 1024x1024.")
+    if prof:
+        conv = [p for p in prof if p["profile"] in ("OptMatMul", "DirectSpatialConv", "OptMatMulPack", "LazyIm2col", "Im2col")]
+        per = collections.defaultdict(float)
+        for p in conv:
+            per[(p["width"], p["size"])] += p["share"]
+        if per:
+            w(f"- Convolutions (matrix products, direct 3x3 kernels and their packing) take "
+              f"{100 * min(per.values()):.0f} % to {100 * max(per.values()):.0f} % of tract's time: the gap "
+              "is in the convolution kernels themselves (onnxruntime's NCHWc direct convolutions on "
+              "this AVX2 CPU against tract's), not in the graph, which no export choice or tract "
+              "knob above closes.")
+    w("")
     if prof:
         w("## Where tract's time goes (one single-threaded run, share of the total)")
         w("")
