@@ -42,43 +42,12 @@ fn build_examples() -> PathBuf {
 }
 
 fn write_pfm(path: &Path, w: usize, h: usize, rgb: &[f32]) {
-    let mut bytes = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
-    for y in (0..h).rev() {
-        for v in &rgb[y * w * 3..(y + 1) * w * 3] {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    std::fs::write(path, bytes).unwrap();
+    temc::io::write_rgb(path, w, h, rgb).unwrap();
 }
 
 fn read_pfm(path: &Path) -> (usize, usize, Vec<f32>) {
-    let bytes = std::fs::read(path).unwrap();
-    let mut fields = Vec::new();
-    let mut pos = 0;
-    while fields.len() < 4 {
-        while bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        let start = pos;
-        while !bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        fields.push(String::from_utf8(bytes[start..pos].to_vec()).unwrap());
-    }
-    pos += 1;
-    assert_eq!(fields[0], "PF");
-    let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
-    assert!(fields[3].starts_with('-'), "little-endian expected");
-    let vals: Vec<f32> = bytes[pos..]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    let mut rgb = vec![0f32; w * h * 3];
-    for y in 0..h {
-        let src = &vals[(h - 1 - y) * w * 3..(h - y) * w * 3];
-        rgb[y * w * 3..(y + 1) * w * 3].copy_from_slice(src);
-    }
-    (w, h, rgb)
+    let b = temc::io::pfm::read(path).unwrap();
+    (b.width, b.height, b.color.expect("RGB PFM"))
 }
 
 #[test]

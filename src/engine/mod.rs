@@ -189,6 +189,7 @@ impl Model {
 
     /// (constant bytes, peak live activation bytes) of the plan for an s x s tile.
     fn plan_bytes(&self, s: usize) -> Result<(f64, f64), Error> {
+        let was_cached = self.cached_sizes().contains(&(s, s));
         let plan = self.plan(s, s)?;
         let model = plan.model();
         let bytes = |n: usize| -> f64 {
@@ -238,11 +239,13 @@ impl Model {
                 live -= bytes(f);
             }
         }
-        // The size-specific plan was only for measuring; do not keep it cached.
-        self.plans
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .remove(&(s, s));
+        // A plan built only for measuring is not kept.
+        if !was_cached {
+            self.plans
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .remove(&(s, s));
+        }
         Ok((consts, peak))
     }
 
