@@ -6,6 +6,31 @@
 //! CPU through [`engine`], and the result is converted back.
 //!
 //! The data flow and the contracts between the parts are in docs/contracts.md.
+//!
+//! Quick start (the OIDN-like API of [`filter`]; no trained model is built in yet, so the
+//! weights come from a temc ONNX file):
+//!
+//! ```
+//! use temc::filter::{Device, Filter};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models/temc2_w0.0625.onnx");
+//! let weights = std::fs::read(path)?;
+//! let (width, height) = (64, 32);
+//! let noisy = vec![0.25f32; width * height * 3]; // linear HDR RGB
+//! let device = Device::new();
+//! device.commit()?;
+//! let mut filter = Filter::new(&device, "TEMC2")?;
+//! filter.set_weights(&weights);
+//! filter.set_input_f32("color", &noisy, width, height)?;
+//! filter.commit()?;
+//! let (denoised, stats) = filter.execute_to_vec()?;
+//! assert_eq!(denoised.len(), noisy.len());
+//! assert_eq!(stats.tiles, 1);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! The C ABI ([`capi`], `include/temc.h`) mirrors Intel Open Image Denoise 2.x.
 
 #![warn(missing_docs)]
 
