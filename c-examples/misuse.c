@@ -106,6 +106,14 @@ int main(int argc, char** argv) {
   EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown int parameter");
   temcSetFilterFloat(f, "inputScale", -1.0f);
   EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "negative input scale");
+  if (!isnan(temcGetFilterFloat(f, "inputScale"))) { fprintf(stderr, "FAIL: inputScale not automatic\n"); ++failures; }
+  temcSetFilterFloat(f, "inputScale", 2.0f);
+  if (temcGetFilterFloat(f, "inputScale") != 2.0f) { fprintf(stderr, "FAIL: inputScale not read back\n"); ++failures; }
+  temcSetFilterFloat(f, "inputScale", NAN);
+  temcGetFilterFloat(f, "noSuchParam");
+  EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "unknown float parameter");
+  if (temcGetFilterInt(f, "maxMemoryMB") != 2048) { fprintf(stderr, "FAIL: default maxMemoryMB\n"); ++failures; }
+  if (!temcGetFilterBool(f, "hdr")) { fprintf(stderr, "FAIL: hdr default\n"); ++failures; }
   temcSetSharedFilterData(f, "weights", NULL, 10);
   EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "NULL weights");
 

@@ -179,6 +179,9 @@ int32_t temcGetFilterInt(TEMCFilter filter, const char *name);
 // Sets a float parameter: "inputScale" (NaN = automatic exposure).
 void temcSetFilterFloat(TEMCFilter filter, const char *name, float value);
 
+// Reads a float parameter: "inputScale" (NaN while automatic).
+float temcGetFilterFloat(TEMCFilter filter, const char *name);
+
 // Sets the progress monitor (NULL removes it); returning false from it cancels execution
 // with TEMC_ERROR_CANCELLED and leaves the output untouched.
 void temcSetFilterProgressMonitorFunction(TEMCFilter filter,

@@ -569,6 +569,12 @@ pub extern "C" fn temcSetFilterFloat(filter: TEMCFilter, name: *const c_char, va
     with_filter(filter, (), |f| f.set_float(name_arg(name)?, value))
 }
 
+/// Reads a float parameter: "inputScale" (NaN while automatic).
+#[no_mangle]
+pub extern "C" fn temcGetFilterFloat(filter: TEMCFilter, name: *const c_char) -> f32 {
+    with_filter(filter, f32::NAN, |f| f.get_float(name_arg(name)?))
+}
+
 struct SendPtr(*mut c_void);
 // SAFETY: the C caller owns the user pointer and promises it may be used from the threads
 // temc runs on, as OIDN requires of its progress monitors.

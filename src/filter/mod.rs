@@ -496,7 +496,17 @@ impl<'a> Filter<'a> {
         }
     }
 
-    /// Reads a parameter back: "hdr" (0/1), "quality", "maxMemoryMB".
+    /// Reads a float parameter back: "inputScale" (NaN while automatic).
+    pub fn get_float(&self, name: &str) -> Result<f32, Error> {
+        match name {
+            "inputScale" => Ok(self.input_scale.unwrap_or(f32::NAN)),
+            _ => Err(Error::InvalidArgument(format!(
+                "unknown float parameter {name:?}"
+            ))),
+        }
+    }
+
+    /// Reads a parameter back: "hdr" (0/1), "quality", "maxMemoryMB", "tileSize".
     pub fn get_int(&self, name: &str) -> Result<i32, Error> {
         match name {
             "hdr" => Ok(self.hdr as i32),
