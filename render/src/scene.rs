@@ -182,17 +182,18 @@ fn quad(p: V3, e1: V3, e2: V3, material: usize) -> Object {
     }
 }
 
-/// A synthetic fluorescent lamp: mercury lines and narrow phosphor bands over a low floor.
+/// A synthetic fluorescent lamp: mercury lines and narrow phosphor bands over a low floor,
+/// balanced to a cool white (chromaticity about x 0.361, y 0.357, near 4500 K).
 pub fn spiky_lamp() -> Spectrum {
     Spectrum::Lines {
         floor: 0.03,
         lines: vec![
-            (404.7, 1.5, 0.6),
-            (435.8, 1.5, 1.0),
+            (404.7, 1.5, 0.5),
+            (435.8, 1.5, 1.3),
             (487.0, 4.0, 0.5),
-            (546.1, 1.5, 1.6),
+            (546.1, 1.5, 2.1),
             (578.0, 2.0, 0.5),
-            (611.0, 3.0, 1.4),
+            (611.0, 3.0, 1.1),
         ],
     }
 }
