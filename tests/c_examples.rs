@@ -19,7 +19,11 @@ fn build_examples() -> PathBuf {
     let mut cargo = Command::new(env!("CARGO"));
     cargo
         .current_dir(root())
-        .args(["build", "--lib", "--quiet"]);
+        // The same package selection and dev-dependency feature unification as
+        // `cargo test --workspace`, so this build reuses that build's libtemc instead of
+        // overwriting it with a differently-featured one (which breaks later doctests of
+        // crates that link it).
+        .args(["build", "--workspace", "--lib", "--tests", "--quiet"]);
     if release {
         cargo.arg("--release");
     }

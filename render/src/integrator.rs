@@ -1,10 +1,22 @@
 //! Path tracing with hero wavelengths, next-event estimation with MIS, Russian roulette.
+//!
+//! The tracer is compiled in several kernels (const generic switches) and a scene runs the
+//! cheapest one that is correct for it: without dispersive glass the four wavelengths are
+//! never split, without any dielectric no refraction code is in the loop. The general
+//! kernel, which a scene can be forced onto to check the specialisation, traces one
+//! wavelength per path from the start (the naive way to support dispersion) and keeps
+//! every material branch.
 
 use std::f32::consts::PI;
 
-use crate::scene::{Material, Scene, Shape};
+use crate::material::{
+    fresnel_conductor, fresnel_dielectric, ggx_g1, mul, reflect, refract, sample_cosine,
+    sample_microfacet, Material, SMOOTH,
+};
+use crate::scene::{Features, Hit, Scene};
+use crate::shape::{sample_sphere_cone, sphere_cone_pdf, Prim};
 use crate::spectrum::{Lanes, Spectrum, Wavelengths, LANES};
-use crate::vec3::{basis, V3};
+use crate::vec3::V3;
 
 /// A small, fast, seedable generator (PCG32), so renders are deterministic from a seed.
 pub struct Rng(u64);
@@ -30,135 +42,340 @@ impl Rng {
     }
 }
 
+/// Which code paths a render compiles in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Kernel {
+    /// Trace only the hero wavelength from the first vertex.
+    pub split_always: bool,
+    /// Split wavelengths lazily at dispersive refraction (pbrt-v4's rule).
+    pub dispersion: bool,
+    /// Refraction code present.
+    pub transmission: bool,
+    /// Sample wavelengths from the emitters' spectra (needed for line spectra).
+    pub emitter_wavelengths: bool,
+}
+
+impl Kernel {
+    /// Everything on: correct for any scene, cheapest for none.
+    pub const GENERAL: Kernel = Kernel {
+        split_always: true,
+        dispersion: true,
+        transmission: true,
+        emitter_wavelengths: true,
+    };
+
+    /// The cheapest correct kernel for a scene with these features.
+    pub fn for_features(f: &Features) -> Kernel {
+        Kernel {
+            split_always: false,
+            dispersion: f.dispersion,
+            transmission: f.transmission,
+            emitter_wavelengths: f.spiky_emitters,
+        }
+    }
+}
+
 /// What one camera path found.
 pub struct PathSample {
     /// Radiance per lane.
     pub radiance: Lanes,
-    /// The lanes' wavelengths and densities.
+    /// The lanes' wavelengths and densities (terminated lanes have density 0).
     pub wavelengths: Wavelengths,
-    /// First non-emissive hit: albedo RGB, normal, distance (zeros when the ray escaped).
+    /// Albedo at the first non-specular hit (1 for emitters and the environment).
     pub albedo: [f32; 3],
-    /// Shading normal at the first hit.
+    /// Normal at the first non-specular hit, facing the ray.
     pub normal: V3,
-    /// Distance to the first hit (0 when the ray escaped).
+    /// Distance to the first hit (0 when the camera ray escaped).
     pub depth: f32,
 }
 
-fn mul(a: Lanes, b: Lanes) -> Lanes {
-    [a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]]
-}
-
-fn emitted(s: &Spectrum, scale: f32, wl: &Wavelengths) -> Lanes {
-    s.sample(wl).map(|v| v * scale)
-}
-
-/// Traces one path from the camera along `d`.
+/// Traces one path with the given kernel.
 pub fn trace(
+    kernel: Kernel,
     scene: &Scene,
-    lights: &[usize],
+    wl: Wavelengths,
     origin: V3,
     d: V3,
     rng: &mut Rng,
     max_depth: u32,
 ) -> PathSample {
-    let wl = Wavelengths::sample(rng.uniform());
-    let mut out = PathSample {
-        radiance: [0.0; LANES],
-        wavelengths: wl,
-        albedo: [0.0; 3],
-        normal: V3::default(),
-        depth: 0.0,
-    };
+    let Kernel {
+        split_always: s,
+        dispersion: di,
+        transmission: t,
+        ..
+    } = kernel;
+    macro_rules! dispatch {
+        ($($a:literal $b:literal $c:literal),*) => {
+            match (s, di, t) {
+                $(($a, $b, $c) => trace_kernel::<$a, $b, $c>(scene, wl, origin, d, rng, max_depth),)*
+            }
+        };
+    }
+    dispatch!(
+        false false false, false false true, false true false, false true true,
+        true false false, true false true, true true false, true true true
+    )
+}
+
+const EPS: f32 = 1e-4;
+
+fn lanes(s: &Spectrum, wl: &Wavelengths) -> Lanes {
+    s.sample(wl)
+}
+
+fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
+    scene: &Scene,
+    mut wl: Wavelengths,
+    origin: V3,
+    d: V3,
+    rng: &mut Rng,
+    max_depth: u32,
+) -> PathSample {
+    if SPLIT {
+        wl.terminate_secondary();
+    }
+    let mut radiance = [0.0f32; LANES];
+    let mut aux: Option<([f32; 3], V3)> = None;
+    let mut depth0 = 0.0;
     let (mut o, mut d) = (origin, d);
     let mut beta = [1.0f32; LANES];
-    let mut prev_cos_pdf = 0.0f32; // solid-angle pdf of the last BSDF sample; 0 = camera ray
+    // Solid-angle density of the last diffuse-lobe sample, for MIS on emitter hits;
+    // 0 after the camera or a bounce that next-event estimation did not cover.
+    let mut prev_pdf = 0.0f32;
+    let mut prev_p = origin;
+    let lights = scene.lights();
     let n_lights = lights.len() as f32;
     for depth in 0..max_depth {
-        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else {
+        let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
             if let Some((env, scale)) = &scene.environment {
-                let le = emitted(env, *scale, &wl);
-                out.radiance = std::array::from_fn(|i| out.radiance[i] + beta[i] * le[i]);
+                let le = lanes(env, &wl);
+                for i in 0..LANES {
+                    radiance[i] += beta[i] * le[i] * scale;
+                }
             }
+            aux.get_or_insert(([1.0; 3], V3::default()));
             break;
         };
-        let obj = &scene.objects[hit.object];
-        match &scene.materials[obj.material] {
-            Material::Emitter { radiance, scale } => {
-                if depth == 0 {
-                    out.normal = hit.n;
-                    out.depth = hit.t;
-                }
-                let le = emitted(radiance, *scale, &wl);
-                // MIS against next-event estimation, which also found this light.
-                let w = if prev_cos_pdf == 0.0 || !matches!(obj.shape, Shape::Quad { .. }) {
+        if depth == 0 {
+            depth0 = hit.t;
+        }
+        let wo = -d;
+        let (u, v) = hit.uv;
+        let material = &scene.materials[hit.material];
+        let (wi, transmitted) = match material {
+            Material::Emitter { radiance: s, scale } => {
+                aux.get_or_insert(([1.0; 3], hit.n));
+                let w = if prev_pdf == 0.0 {
                     1.0
                 } else {
-                    let cos_l = hit.n.dot(-d).abs().max(1e-6);
-                    let light_pdf = hit.t * hit.t / (cos_l * obj.shape.area() * n_lights);
-                    prev_cos_pdf * prev_cos_pdf
-                        / (prev_cos_pdf * prev_cos_pdf + light_pdf * light_pdf)
+                    let lp = light_pdf(scene, hit.prim, prev_p, &hit, d) / n_lights.max(1.0);
+                    prev_pdf * prev_pdf / (prev_pdf * prev_pdf + lp * lp)
                 };
-                out.radiance = std::array::from_fn(|i| out.radiance[i] + beta[i] * le[i] * w);
+                let le = lanes(s, &wl);
+                for i in 0..LANES {
+                    radiance[i] += beta[i] * le[i] * scale * w;
+                }
                 break;
             }
-            Material::Diffuse { reflectance, rgb } => {
-                if depth == 0 {
-                    out.albedo = *rgb;
-                    out.normal = hit.n;
-                    out.depth = hit.t;
-                }
-                let rho = reflectance.sample(&wl);
-                // Next-event estimation: one point on one light.
-                if !lights.is_empty() {
-                    let li = lights[((rng.uniform() * n_lights) as usize).min(lights.len() - 1)];
-                    let lo = &scene.objects[li];
-                    if let (Shape::Quad { p, e1, e2 }, Material::Emitter { radiance, scale }) =
-                        (&lo.shape, &scene.materials[lo.material])
-                    {
-                        let q = *p + *e1 * rng.uniform() + *e2 * rng.uniform();
-                        let to = q - hit.p;
-                        let dist = to.len();
-                        let wi = to / dist;
-                        let cos = hit.n.dot(wi);
-                        let ln = e1.cross(*e2).norm();
-                        let cos_l = ln.dot(-wi).abs();
-                        if cos > 0.0 && cos_l > 1e-6 {
-                            let blocked = scene
-                                .intersect(hit.p, wi, dist - 1e-3)
-                                .is_some_and(|h| h.object != li);
-                            if !blocked {
-                                let light_pdf = dist * dist / (cos_l * lo.shape.area() * n_lights);
-                                let bsdf_pdf = cos / PI;
-                                let w = light_pdf * light_pdf
-                                    / (light_pdf * light_pdf + bsdf_pdf * bsdf_pdf);
-                                let le = emitted(radiance, *scale, &wl);
-                                let f = cos / PI / light_pdf * w;
-                                out.radiance = std::array::from_fn(|i| {
-                                    out.radiance[i] + beta[i] * rho[i] * le[i] * f
-                                });
-                            }
-                        }
-                    }
-                }
-                // Cosine-weighted bounce: f cos / pdf = reflectance.
-                let (u1, u2) = (rng.uniform(), rng.uniform());
-                let r = u1.sqrt();
-                let phi = 2.0 * PI * u2;
-                let z = (1.0 - u1).max(0.0).sqrt();
-                let (t, b) = basis(hit.n);
-                d = (t * (r * phi.cos()) + b * (r * phi.sin()) + hit.n * z).norm();
-                o = hit.p;
-                prev_cos_pdf = z / PI;
+            Material::Diffuse { reflectance } => {
+                let rgb = reflectance.eval(u, v);
+                aux.get_or_insert((rgb, hit.n));
+                let rho = Spectrum::Rgb(rgb).sample(&wl);
+                next_event(scene, &hit, mul(beta, rho), &wl, rng, &mut radiance);
+                let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
                 beta = mul(beta, rho);
-                if depth >= 3 {
-                    let p = beta.iter().fold(0.0f32, |m, &v| m.max(v)).min(0.95);
-                    if p <= 0.0 || rng.uniform() >= p {
-                        break;
+                prev_pdf = pdf;
+                (wi, false)
+            }
+            Material::Plastic {
+                reflectance,
+                ior,
+                roughness,
+            } => {
+                let rgb = reflectance.eval(u, v);
+                aux.get_or_insert((rgb, hit.n));
+                let f = fresnel_dielectric(wo.dot(hit.n), *ior);
+                if rng.uniform() < f {
+                    // The coat: mirror, or GGX by visible-normal sampling.
+                    prev_pdf = 0.0;
+                    let a = roughness.eval_scalar(u, v);
+                    if a < SMOOTH {
+                        (reflect(wo, hit.n), false)
+                    } else {
+                        let m = sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform());
+                        let wi = reflect(wo, m);
+                        if wi.dot(hit.n) <= 0.0 {
+                            break;
+                        }
+                        beta = beta.map(|b| b * ggx_g1(wi.dot(hit.n), a));
+                        (wi, false)
                     }
-                    beta = beta.map(|v| v / p);
+                } else {
+                    let rho = Spectrum::Rgb(rgb).sample(&wl);
+                    next_event(scene, &hit, mul(beta, rho), &wl, rng, &mut radiance);
+                    let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
+                    beta = mul(beta, rho);
+                    prev_pdf = pdf;
+                    (wi, false)
                 }
             }
+            Material::Conductor {
+                metal,
+                roughness,
+                albedo,
+            } => {
+                prev_pdf = 0.0;
+                let a = roughness.eval_scalar(u, v);
+                let (wi, cos_m, g) = if a < SMOOTH {
+                    (reflect(wo, hit.n), wo.dot(hit.n), 1.0)
+                } else {
+                    aux.get_or_insert((*albedo, hit.n));
+                    let m = sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform());
+                    let wi = reflect(wo, m);
+                    if wi.dot(hit.n) <= 0.0 {
+                        break;
+                    }
+                    (wi, wo.dot(m), ggx_g1(wi.dot(hit.n), a))
+                };
+                let eta = metal.eta.sample(&wl);
+                let k = metal.k.sample(&wl);
+                for i in 0..LANES {
+                    beta[i] *= fresnel_conductor(cos_m, eta[i], k[i]) * g;
+                }
+                (wi, false)
+            }
+            Material::Dielectric { ior, roughness } => {
+                if !TRANS {
+                    break; // not compiled in: the kernel was chosen for a scene without glass
+                }
+                prev_pdf = 0.0;
+                if DISP && ior.dispersive() {
+                    wl.terminate_secondary();
+                }
+                let n_mat = ior.eval(wl.lambda[0]);
+                let eta = if hit.front { n_mat } else { 1.0 / n_mat };
+                let a = roughness.eval_scalar(u, v);
+                let m = if a < SMOOTH {
+                    hit.n
+                } else {
+                    aux.get_or_insert(([1.0; 3], hit.n));
+                    sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform())
+                };
+                let cos = wo.dot(m);
+                if cos <= 0.0 {
+                    break;
+                }
+                let f = fresnel_dielectric(cos, eta);
+                let (wi, through) = if rng.uniform() < f {
+                    (reflect(wo, m), false)
+                } else {
+                    match refract(wo, m, eta) {
+                        Some(t) => (t, true),
+                        None => (reflect(wo, m), false),
+                    }
+                };
+                let side = wi.dot(hit.n);
+                if (through && side >= 0.0) || (!through && side <= 0.0) {
+                    break;
+                }
+                if a >= SMOOTH {
+                    beta = beta.map(|b| b * ggx_g1(side.abs(), a));
+                }
+                (wi, through)
+            }
+        };
+        prev_p = hit.p;
+        o = hit.p + if transmitted { -hit.n } else { hit.n } * EPS;
+        d = wi;
+        if depth >= 3 {
+            let p = (0..LANES)
+                .filter(|&i| wl.pdf[i] > 0.0)
+                .fold(0.0f32, |m, i| m.max(beta[i]))
+                .min(0.95);
+            if p <= 0.0 || rng.uniform() >= p {
+                break;
+            }
+            beta = beta.map(|b| b / p);
         }
     }
-    out
+    let (albedo, normal) = aux.unwrap_or(([0.0; 3], V3::default()));
+    PathSample {
+        radiance,
+        wavelengths: wl,
+        albedo,
+        normal,
+        depth: depth0,
+    }
+}
+
+/// Solid-angle density with which next-event estimation picks the point `hit` on light
+/// primitive `prim`, seen from `from` along `d` (before dividing by the light count).
+fn light_pdf(scene: &Scene, prim: usize, from: V3, hit: &Hit, d: V3) -> f32 {
+    match scene.prims[prim] {
+        Prim::Quad { .. } => {
+            let cos_l = hit.n.dot(-d).abs().max(1e-6);
+            hit.t * hit.t / (cos_l * scene.prims[prim].area())
+        }
+        Prim::Sphere { c, r } => sphere_cone_pdf(from, c, r),
+        Prim::Triangle { .. } => 0.0, // never sampled by next-event estimation
+    }
+}
+
+/// One light sample for a diffuse lobe with per-lane reflectance-weighted throughput
+/// `beta_rho`, MIS-weighted against cosine sampling.
+fn next_event(
+    scene: &Scene,
+    hit: &Hit,
+    beta_rho: Lanes,
+    wl: &Wavelengths,
+    rng: &mut Rng,
+    radiance: &mut Lanes,
+) {
+    let lights = scene.lights();
+    if lights.is_empty() {
+        return;
+    }
+    let n = lights.len() as f32;
+    let li = lights[((rng.uniform() * n) as usize).min(lights.len() - 1)];
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    let x = hit.p + hit.n * EPS;
+    let (wi, dist, pdf) = match scene.prims[li] {
+        Prim::Quad { p, e1, e2 } => {
+            let q = p + e1 * u1 + e2 * u2;
+            let to = q - x;
+            let dist = to.len();
+            let wi = to / dist;
+            let cos_l = e1.cross(e2).norm().dot(-wi).abs();
+            if cos_l < 1e-6 {
+                return;
+            }
+            (wi, dist, dist * dist / (cos_l * scene.prims[li].area()))
+        }
+        Prim::Sphere { c, r } => {
+            let Some((wi, pdf)) = sample_sphere_cone(x, c, r, u1, u2) else {
+                return;
+            };
+            let Some(h) = scene.prims[li].intersect(x, wi, 0.0, f32::INFINITY) else {
+                return;
+            };
+            (wi, h.t, pdf)
+        }
+        Prim::Triangle { .. } => return,
+    };
+    let cos = hit.n.dot(wi);
+    if cos <= 0.0 || scene.occluded(x, wi, dist * (1.0 - 1e-4), li) {
+        return;
+    }
+    let Material::Emitter { radiance: s, scale } = &scene.materials[scene.prim_material[li]] else {
+        return;
+    };
+    let light = pdf / n;
+    let bsdf = cos / PI;
+    let w = light * light / (light * light + bsdf * bsdf);
+    let le = lanes(s, wl);
+    let f = cos / PI / light * w * scale;
+    for i in 0..LANES {
+        radiance[i] += beta_rho[i] * le[i] * f;
+    }
 }

@@ -1,57 +1,11 @@
-//! Scenes: shapes, materials, emitters, camera, and the named scenes.
+//! Scenes: primitives with materials behind a BVH, lights, the camera, the inspection that
+//! picks a render kernel, and the named scenes (scene files embedded in the binary).
 
+use crate::bvh::Bvh;
+use crate::material::{Material, SMOOTH};
+use crate::shape::{Prim, PrimHit};
 use crate::spectrum::Spectrum;
 use crate::vec3::V3;
-
-/// A surface material.
-#[derive(Clone, Debug)]
-pub enum Material {
-    /// Lambertian reflection with a spectral reflectance; `rgb` is its albedo for the
-    /// albedo feature buffer.
-    Diffuse {
-        /// Spectral reflectance in [0, 1].
-        reflectance: Spectrum,
-        /// The same reflectance as linear RGB, for the albedo buffer.
-        rgb: [f32; 3],
-    },
-    /// A black emitter: `radiance` (luminance-normalised) times `scale`.
-    Emitter {
-        /// Spectral shape.
-        radiance: Spectrum,
-        /// Multiplier (luminance-normalised scenes divide by the shape's luminance).
-        scale: f32,
-    },
-}
-
-/// A shape.
-#[derive(Clone, Debug)]
-pub enum Shape {
-    /// Centre and radius.
-    Sphere {
-        /// Centre.
-        c: V3,
-        /// Radius.
-        r: f32,
-    },
-    /// A parallelogram: corner and two edges (normal = e1 x e2, normalised).
-    Quad {
-        /// Corner.
-        p: V3,
-        /// First edge.
-        e1: V3,
-        /// Second edge.
-        e2: V3,
-    },
-}
-
-/// A shape with its material.
-#[derive(Clone, Debug)]
-pub struct Object {
-    /// Geometry.
-    pub shape: Shape,
-    /// Index into [`Scene::materials`].
-    pub material: usize,
-}
 
 /// A pinhole camera.
 #[derive(Clone, Debug)]
@@ -71,12 +25,16 @@ pub struct Scene {
     pub name: String,
     /// Materials.
     pub materials: Vec<Material>,
-    /// Objects.
-    pub objects: Vec<Object>,
-    /// Radiance of rays that escape (constant over directions).
+    /// Primitives.
+    pub prims: Vec<Prim>,
+    /// Material index of each primitive.
+    pub prim_material: Vec<usize>,
+    /// Radiance of rays that escape (constant over directions): shape and scale.
     pub environment: Option<(Spectrum, f32)>,
     /// Camera.
     pub camera: Camera,
+    bvh: Bvh,
+    lights: Vec<usize>,
 }
 
 /// A ray hit.
@@ -86,99 +44,140 @@ pub struct Hit {
     pub t: f32,
     /// Position.
     pub p: V3,
-    /// Geometric normal facing the ray's origin side.
+    /// Geometric normal on the side the ray came from.
     pub n: V3,
-    /// Object index.
-    pub object: usize,
+    /// Whether the ray hit the front (outside) of the primitive.
+    pub front: bool,
+    /// Texture coordinates.
+    pub uv: (f32, f32),
+    /// Primitive index.
+    pub prim: usize,
+    /// Material index.
+    pub material: usize,
 }
 
-impl Shape {
-    /// Nearest intersection in (t_min, t_max).
-    pub fn intersect(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<(f32, V3)> {
-        match *self {
-            Shape::Sphere { c, r } => {
-                let oc = o - c;
-                let b = oc.dot(d);
-                let cc = oc.dot(oc) - r * r;
-                let disc = b * b - cc;
-                if disc < 0.0 {
-                    return None;
-                }
-                let s = disc.sqrt();
-                for t in [-b - s, -b + s] {
-                    if t > t_min && t < t_max {
-                        return Some((t, (o + d * t - c) / r));
-                    }
-                }
-                None
-            }
-            Shape::Quad { p, e1, e2 } => {
-                let n = e1.cross(e2);
-                let denom = n.dot(d);
-                if denom.abs() < 1e-12 {
-                    return None;
-                }
-                let t = n.dot(p - o) / denom;
-                if t <= t_min || t >= t_max {
-                    return None;
-                }
-                let q = o + d * t - p;
-                let (a, b) = (q.dot(e1) / e1.dot(e1), q.dot(e2) / e2.dot(e2));
-                if (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) {
-                    Some((t, n.norm()))
-                } else {
-                    None
-                }
-            }
-        }
-    }
-
-    /// Area.
-    pub fn area(&self) -> f32 {
-        match *self {
-            Shape::Sphere { r, .. } => 4.0 * std::f32::consts::PI * r * r,
-            Shape::Quad { e1, e2, .. } => e1.cross(e2).len(),
-        }
-    }
+/// What a scene contains, which decides the cheapest correct render kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Features {
+    /// A dielectric whose index depends on wavelength: refraction must split wavelengths.
+    pub dispersion: bool,
+    /// Any dielectric: the loop needs refraction code.
+    pub transmission: bool,
+    /// An emitter with narrow lines: wavelengths are sampled from the emitters' spectra.
+    pub spiky_emitters: bool,
+    /// Any glossy or specular surface (conductor, dielectric, plastic coat).
+    pub glossy: bool,
 }
 
 impl Scene {
-    /// Nearest hit along a ray (linear scan: the named scenes have few objects).
-    pub fn intersect(&self, o: V3, d: V3, t_max: f32) -> Option<Hit> {
-        let mut best: Option<Hit> = None;
-        for (i, obj) in self.objects.iter().enumerate() {
-            let limit = best.map_or(t_max, |h| h.t);
-            if let Some((t, n)) = obj.shape.intersect(o, d, 1e-4, limit) {
-                let n = if n.dot(d) > 0.0 { -n } else { n };
-                best = Some(Hit {
-                    t,
-                    p: o + d * t,
-                    n,
-                    object: i,
-                });
-            }
+    /// Assembles a scene and builds its BVH. `objects` pairs shapes with material indices.
+    pub fn new(
+        name: &str,
+        materials: Vec<Material>,
+        objects: Vec<(Vec<Prim>, usize)>,
+        environment: Option<(Spectrum, f32)>,
+        camera: Camera,
+    ) -> Self {
+        let mut prims = Vec::new();
+        let mut prim_material = Vec::new();
+        for (shape, m) in objects {
+            prim_material.extend(std::iter::repeat_n(m, shape.len()));
+            prims.extend(shape);
         }
-        best
+        let bvh = Bvh::build(&prims);
+        let lights = (0..prims.len())
+            .filter(|&i| {
+                matches!(materials[prim_material[i]], Material::Emitter { .. })
+                    && matches!(prims[i], Prim::Quad { .. } | Prim::Sphere { .. })
+            })
+            .collect();
+        Scene {
+            name: name.into(),
+            materials,
+            prims,
+            prim_material,
+            environment,
+            camera,
+            bvh,
+            lights,
+        }
     }
 
-    /// Indices of emissive quads (the lights next-event estimation samples).
-    pub fn lights(&self) -> Vec<usize> {
-        self.objects
+    /// Nearest hit along a unit ray, with t in (t_min, t_max).
+    pub fn intersect(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<Hit> {
+        let (prim, PrimHit { t, n, uv }) = self.bvh.intersect(&self.prims, o, d, t_min, t_max)?;
+        let front = n.dot(d) < 0.0;
+        Some(Hit {
+            t,
+            p: o + d * t,
+            n: if front { n } else { -n },
+            front,
+            uv,
+            prim,
+            material: self.prim_material[prim],
+        })
+    }
+
+    /// Whether anything but primitive `skip` blocks the segment from `o` along `d`.
+    pub fn occluded(&self, o: V3, d: V3, t_max: f32, skip: usize) -> bool {
+        self.bvh.occluded(&self.prims, o, d, t_max, &[skip])
+    }
+
+    /// Emissive quads and spheres: the lights next-event estimation samples.
+    pub fn lights(&self) -> &[usize] {
+        &self.lights
+    }
+
+    /// Spectra of every emitter and of the environment.
+    pub fn emitter_spectra(&self) -> Vec<&Spectrum> {
+        let mut v: Vec<&Spectrum> = self
+            .materials
             .iter()
-            .enumerate()
-            .filter(|(_, o)| {
-                matches!(self.materials[o.material], Material::Emitter { .. })
-                    && matches!(o.shape, Shape::Quad { .. })
+            .filter_map(|m| match m {
+                Material::Emitter { radiance, .. } => Some(radiance),
+                _ => None,
             })
-            .map(|(i, _)| i)
-            .collect()
+            .collect();
+        if let Some((s, _)) = &self.environment {
+            v.push(s);
+        }
+        v
+    }
+
+    /// Inspects the materials that primitives use.
+    pub fn features(&self) -> Features {
+        let mut f = Features::default();
+        let mut used = vec![false; self.materials.len()];
+        for &m in &self.prim_material {
+            used[m] = true;
+        }
+        for (m, _) in self.materials.iter().zip(&used).filter(|(_, u)| **u) {
+            match m {
+                Material::Dielectric { ior, .. } => {
+                    f.transmission = true;
+                    f.glossy = true;
+                    f.dispersion |= ior.dispersive();
+                }
+                Material::Conductor { .. } | Material::Plastic { .. } => f.glossy = true,
+                Material::Emitter { radiance, .. } => f.spiky_emitters |= radiance.is_spiky(),
+                Material::Diffuse { .. } => {}
+            }
+        }
+        if let Some((s, _)) = &self.environment {
+            f.spiky_emitters |= s.is_spiky();
+        }
+        f
     }
 }
 
-fn quad(p: V3, e1: V3, e2: V3, material: usize) -> Object {
-    Object {
-        shape: Shape::Quad { p, e1, e2 },
-        material,
+/// Whether a material scatters only into one direction (no next-event estimation there,
+/// and the albedo/normal buffers look through it).
+pub fn is_specular(m: &Material, uv: (f32, f32)) -> bool {
+    match m {
+        Material::Conductor { roughness, .. } | Material::Dielectric { roughness, .. } => {
+            roughness.eval_scalar(uv.0, uv.1) < SMOOTH
+        }
+        _ => false,
     }
 }
 
@@ -198,99 +197,92 @@ pub fn spiky_lamp() -> Spectrum {
     }
 }
 
+/// The named scenes: name, what it stresses, scene file text.
+pub const NAMED: [(&str, &str, &str); 9] = [
+    (
+        "cornell-spiky",
+        "Cornell box under a spiky fluorescent lamp: chroma speckle on white walls",
+        include_str!("../scenes/cornell-spiky.scene"),
+    ),
+    (
+        "cornell-warm",
+        "the same box under a 3200 K blackbody (the smooth-spectrum control)",
+        include_str!("../scenes/cornell-warm.scene"),
+    ),
+    (
+        "prism",
+        "a dispersive N-SF11 prism and glass sphere under a small white lamp: rainbow caustics",
+        include_str!("../scenes/prism.scene"),
+    ),
+    (
+        "metals",
+        "gold, silver, copper and aluminium, smooth and rough, under D65",
+        include_str!("../scenes/metals.scene"),
+    ),
+    (
+        "textured",
+        "checker, stripes, noise and fine-grid textures on reflectance and roughness",
+        include_str!("../scenes/textured.scene"),
+    ),
+    (
+        "dark-room",
+        "a room lit only indirectly through a gap: dim, slowly converging",
+        include_str!("../scenes/dark-room.scene"),
+    ),
+    (
+        "firefly",
+        "a tiny, very bright lamp seen through glossy bounces: fireflies",
+        include_str!("../scenes/firefly.scene"),
+    ),
+    (
+        "laser",
+        "a 532 nm laser-line lamp beside a warm lamp: wavelength sampling on a line",
+        include_str!("../scenes/laser.scene"),
+    ),
+    (
+        "furnace",
+        "white furnace: a white sphere in a uniform environment (every pixel is 1)",
+        include_str!("../scenes/furnace.scene"),
+    ),
+];
+
 /// The names [`named`] knows.
-pub const NAMES: [&str; 3] = ["cornell-spiky", "cornell-warm", "furnace"];
+pub fn names() -> Vec<&'static str> {
+    NAMED.iter().map(|n| n.0).collect()
+}
 
 /// A named scene.
 pub fn named(name: &str) -> Option<Scene> {
-    match name {
-        "cornell-spiky" => Some(cornell(spiky_lamp())),
-        "cornell-warm" => Some(Scene {
-            name: "cornell-warm".into(),
-            ..cornell(Spectrum::Blackbody(3200.0))
-        }),
-        "furnace" => Some(furnace()),
-        _ => None,
-    }
+    let (n, _, text) = NAMED.iter().find(|n| n.0 == name)?;
+    Some(
+        crate::format::parse(text, n, None)
+            .unwrap_or_else(|e| panic!("built-in scene {n} does not parse: {e}")),
+    )
 }
 
-/// The Cornell box (unit cube, open front) lit by a ceiling lamp with the given spectrum.
-pub fn cornell(lamp: Spectrum) -> Scene {
-    let diffuse = |c: [f32; 3]| Material::Diffuse {
-        reflectance: Spectrum::Rgb(c),
-        rgb: c,
-    };
-    let materials = vec![
-        diffuse([0.73, 0.73, 0.73]),
-        diffuse([0.65, 0.05, 0.05]),
-        diffuse([0.12, 0.45, 0.15]),
-        Material::Emitter {
-            scale: 15.0 / lamp.luminance(),
-            radiance: lamp,
-        },
-    ];
-    let (w, r, g, l) = (0, 1, 2, 3);
-    let objects = vec![
-        quad(V3(0.0, 0.0, 0.0), V3(1.0, 0.0, 0.0), V3(0.0, 0.0, 1.0), w), // floor
-        quad(V3(0.0, 1.0, 0.0), V3(0.0, 0.0, 1.0), V3(1.0, 0.0, 0.0), w), // ceiling
-        quad(V3(0.0, 0.0, 1.0), V3(1.0, 0.0, 0.0), V3(0.0, 1.0, 0.0), w), // back
-        quad(V3(0.0, 0.0, 0.0), V3(0.0, 1.0, 0.0), V3(0.0, 0.0, 1.0), r), // left
-        quad(V3(1.0, 0.0, 0.0), V3(0.0, 0.0, 1.0), V3(0.0, 1.0, 0.0), g), // right
-        quad(
-            V3(0.38, 0.999, 0.4),
-            V3(0.24, 0.0, 0.0),
-            V3(0.0, 0.0, 0.2),
-            l,
-        ), // lamp
-        Object {
-            shape: Shape::Sphere {
-                c: V3(0.3, 0.18, 0.55),
-                r: 0.18,
-            },
-            material: w,
-        },
-        Object {
-            shape: Shape::Sphere {
-                c: V3(0.7, 0.25, 0.35),
-                r: 0.25,
-            },
-            material: w,
-        },
-    ];
-    Scene {
-        name: "cornell-spiky".into(),
-        materials,
-        objects,
-        environment: None,
-        camera: Camera {
-            eye: V3(0.5, 0.5, -1.4),
-            target: V3(0.5, 0.5, 0.0),
-            fov_deg: 38.0,
-        },
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// White furnace: a white diffuse sphere under a uniform environment of radiance 1.
-/// Energy conservation means every pixel, sphere or not, has luminance 1.
-pub fn furnace() -> Scene {
-    Scene {
-        name: "furnace".into(),
-        materials: vec![Material::Diffuse {
-            reflectance: Spectrum::Constant(1.0),
-            rgb: [1.0; 3],
-        }],
-        objects: vec![Object {
-            shape: Shape::Sphere {
-                c: V3(0.0, 0.0, 0.0),
-                r: 1.0,
-            },
-            material: 0,
-        }],
-        environment: Some((Spectrum::Constant(1.0), 1.0)),
-        camera: Camera {
-            eye: V3(0.0, 0.0, -4.0),
-            target: V3(0.0, 0.0, 0.0),
-            fov_deg: 40.0,
-        },
+    #[test]
+    fn every_named_scene_parses_and_has_light() {
+        for (name, _, _) in NAMED {
+            let s = named(name).unwrap();
+            assert!(!s.prims.is_empty(), "{name}");
+            assert!(
+                !s.lights().is_empty() || s.environment.is_some(),
+                "{name} has no light"
+            );
+        }
+    }
+
+    #[test]
+    fn inspection_finds_what_each_scene_calls_for() {
+        let f = |n: &str| named(n).unwrap().features();
+        assert_eq!(f("cornell-warm"), Features::default());
+        assert!(f("cornell-spiky").spiky_emitters && !f("cornell-spiky").transmission);
+        assert!(f("prism").dispersion && f("prism").transmission);
+        assert!(f("metals").glossy && !f("metals").transmission);
+        assert!(f("laser").spiky_emitters);
     }
 }

@@ -32,6 +32,24 @@ pub fn visible_pdf(l: f32) -> f32 {
 }
 
 impl Wavelengths {
+    /// Keeps only the hero wavelength (pbrt-v4's rule for wavelength-dependent directions):
+    /// the other lanes stop contributing and the hero's weight grows fourfold, so the
+    /// estimate stays unbiased.
+    pub fn terminate_secondary(&mut self) {
+        if self.pdf[1] == 0.0 {
+            return;
+        }
+        for p in &mut self.pdf[1..] {
+            *p = 0.0;
+        }
+        self.pdf[0] /= LANES as f32;
+    }
+
+    /// Whether only the hero wavelength is left.
+    pub fn terminated(&self) -> bool {
+        self.pdf[1] == 0.0
+    }
+
     /// Samples four stratified wavelengths from one uniform number `u`.
     pub fn sample(u: f32) -> Self {
         let mut lambda = [0.0; LANES];
@@ -43,6 +61,85 @@ impl Wavelengths {
             pdf[i] = visible_pdf(lambda[i]);
         }
         Self { lambda, pdf }
+    }
+}
+
+/// How a render picks its wavelengths.
+#[derive(Clone, Debug)]
+pub enum LambdaSampler {
+    /// The visible-importance density: right for smooth emitters.
+    Visible,
+    /// A tabulated density, half visible-importance and half the emitters' spectra
+    /// weighted by the colour matching functions: spiky lamps and lasers then get samples
+    /// on their lines. Piecewise constant over `BIN` nm bins.
+    Table {
+        /// Density per bin (per nm).
+        pdf: Vec<f32>,
+        /// Cumulative distribution at bin ends (last = 1).
+        cdf: Vec<f32>,
+    },
+}
+
+const BIN: f32 = 0.25;
+
+impl LambdaSampler {
+    /// A sampler for a scene whose emitters have these spectra.
+    pub fn for_emitters(emitters: &[&Spectrum]) -> Self {
+        let n = ((LAMBDA_MAX - LAMBDA_MIN) / BIN) as usize;
+        let centre = |i: usize| LAMBDA_MIN + (i as f32 + 0.5) * BIN;
+        let mut mix = vec![0.0f64; n];
+        for s in emitters {
+            let w: Vec<f64> = (0..n)
+                .map(|i| {
+                    let l = centre(i);
+                    let c = temc::color::spectral::cmf(l as f64);
+                    s.eval(l).max(0.0) as f64 * (c[0] + c[1] + c[2])
+                })
+                .collect();
+            let total: f64 = w.iter().sum::<f64>() * BIN as f64;
+            if total > 0.0 {
+                for (m, v) in mix.iter_mut().zip(w) {
+                    *m += v / total / emitters.len() as f64;
+                }
+            }
+        }
+        let pdf: Vec<f64> = (0..n)
+            .map(|i| 0.5 * visible_pdf(centre(i)) as f64 + 0.5 * mix[i])
+            .collect();
+        let total: f64 = pdf.iter().sum::<f64>() * BIN as f64;
+        let mut acc = 0.0;
+        let mut cdf = Vec::with_capacity(n);
+        for p in &pdf {
+            acc += p / total * BIN as f64;
+            cdf.push(acc as f32);
+        }
+        *cdf.last_mut().unwrap() = 1.0;
+        LambdaSampler::Table {
+            pdf: pdf.iter().map(|p| (p / total) as f32).collect(),
+            cdf,
+        }
+    }
+
+    /// Four stratified wavelengths from one uniform number.
+    pub fn sample(&self, u: f32) -> Wavelengths {
+        match self {
+            LambdaSampler::Visible => Wavelengths::sample(u),
+            LambdaSampler::Table { pdf, cdf } => {
+                let mut wl = Wavelengths {
+                    lambda: [0.0; LANES],
+                    pdf: [0.0; LANES],
+                };
+                for i in 0..LANES {
+                    let ui = (u + i as f32 / LANES as f32).fract();
+                    let b = cdf.partition_point(|&c| c <= ui).min(cdf.len() - 1);
+                    let lo = if b == 0 { 0.0 } else { cdf[b - 1] };
+                    let f = ((ui - lo) / (cdf[b] - lo).max(1e-12)).clamp(0.0, 1.0);
+                    wl.lambda[i] = LAMBDA_MIN + (b as f32 + f) * BIN;
+                    wl.pdf[i] = pdf[b];
+                }
+                wl
+            }
+        }
     }
 }
 
@@ -63,6 +160,9 @@ pub enum Spectrum {
         /// (centre nm, width nm, height) per line.
         lines: Vec<(f32, f32, f32)>,
     },
+    /// Piecewise-linear samples every 10 nm from 360 nm (measured data), held flat
+    /// outside the table.
+    Tabulated(&'static [f32; 48]),
 }
 
 fn planck(l_nm: f32, t: f32) -> f32 {
@@ -103,7 +203,33 @@ impl Spectrum {
                         .map(|&(c, w, h)| h * (-0.5 * ((l - c) / w).powi(2)).exp())
                         .sum::<f32>()
             }
+            Spectrum::Tabulated(t) => {
+                let x = ((l - 360.0) / 10.0).clamp(0.0, 47.0);
+                let i = (x as usize).min(46);
+                let f = x - i as f32;
+                t[i] * (1.0 - f) + t[i + 1] * f
+            }
         }
+    }
+
+    /// CIE standard illuminant D65.
+    pub fn d65() -> Self {
+        Spectrum::Tabulated(&crate::measured::D65)
+    }
+
+    /// A narrow-band laser line: a Gaussian of standard deviation `width` nm.
+    pub fn laser(centre: f32, width: f32) -> Self {
+        Spectrum::Lines {
+            floor: 0.0,
+            lines: vec![(centre, width, 1.0)],
+        }
+    }
+
+    /// Whether the spectrum has narrow peaks that visible-range sampling would miss
+    /// (line lamps, lasers): such emitters make the renderer sample wavelengths from the
+    /// emitters' own spectra.
+    pub fn is_spiky(&self) -> bool {
+        matches!(self, Spectrum::Lines { lines, .. } if lines.iter().any(|l| l.1 < 10.0))
     }
 
     /// The values at a path's four wavelengths.
@@ -171,6 +297,66 @@ mod tests {
                 assert!((0.0..=1.0).contains(&v));
             }
         }
+    }
+
+    #[test]
+    fn tabulated_sampler_integrates_spiky_spectra() {
+        let lamp = crate::scene::spiky_lamp();
+        let sampler = LambdaSampler::for_emitters(&[&lamp]);
+        let LambdaSampler::Table { pdf, .. } = &sampler else {
+            unreachable!()
+        };
+        assert!((pdf.iter().sum::<f32>() * BIN - 1.0).abs() < 1e-3);
+        // Estimate the integral of ybar * lamp both ways; the table's estimate must agree
+        // with a fine quadrature.
+        let mut exact = 0.0f64;
+        let mut l = LAMBDA_MIN;
+        while l < LAMBDA_MAX {
+            exact += (temc::color::spectral::cmf(l as f64)[1] * lamp.eval(l) as f64) * 0.01;
+            l += 0.01;
+        }
+        let n = 40000;
+        let mut est = 0.0f64;
+        for k in 0..n {
+            let wl = sampler.sample((k as f32 + 0.5) / n as f32);
+            for i in 0..LANES {
+                let y = temc::color::spectral::cmf(wl.lambda[i] as f64)[1];
+                est += y * lamp.eval(wl.lambda[i]) as f64 / wl.pdf[i] as f64;
+            }
+        }
+        est /= (n * LANES) as f64;
+        assert!((est / exact - 1.0).abs() < 5e-3, "{est} vs {exact}");
+    }
+
+    #[test]
+    fn d65_is_near_its_white_point() {
+        let d65 = Spectrum::d65();
+        let (mut x, mut y, mut z) = (0.0, 0.0, 0.0);
+        for l in 360..=830 {
+            let c = temc::color::spectral::cmf(l as f64);
+            let v = d65.eval(l as f32) as f64;
+            x += c[0] * v;
+            y += c[1] * v;
+            z += c[2] * v;
+        }
+        let (cx, cy) = (x / (x + y + z), y / (x + y + z));
+        // D65's nominal chromaticity is (0.3127, 0.3290); the analytic CMF fit is close.
+        assert!(
+            (cx - 0.3127).abs() < 0.004 && (cy - 0.3290).abs() < 0.004,
+            "{cx} {cy}"
+        );
+    }
+
+    #[test]
+    fn termination_keeps_the_hero_with_four_times_the_weight() {
+        let mut wl = Wavelengths::sample(0.3);
+        let p0 = wl.pdf[0];
+        wl.terminate_secondary();
+        assert!(wl.terminated());
+        assert_eq!(wl.pdf[0], p0 / 4.0);
+        assert_eq!(&wl.pdf[1..], &[0.0; 3]);
+        wl.terminate_secondary();
+        assert_eq!(wl.pdf[0], p0 / 4.0);
     }
 
     #[test]

@@ -1,0 +1,255 @@
+//! `temc-render dataset`: noisy/reference pairs from generated scenes, split by scene into
+//! train/validation/test, resumable (a scene is done when its `done.json` exists; every
+//! file is written atomically), with its cost recorded.
+//!
+//! Layout (what `training/` reads):
+//!
+//! ```text
+//! DIR/dataset.json                 the settings; a resumed run must match them
+//! DIR/manifest.json                every finished scene, its files and seconds, totals
+//! DIR/{train,val,test}/NAME/scene.txt   the scene file (re-renderable)
+//! DIR/{train,val,test}/NAME/spp0004.exr ... one multi-layer EXR per noisy spp
+//! DIR/{train,val,test}/NAME/ref.exr      the reference (independent seed)
+//! DIR/{train,val,test}/NAME/done.json    the scene's record (written last)
+//! ```
+//!
+//! Noisy images at several spp come from one progressive render (each is a prefix of the
+//! next); the reference uses its own seed, so its noise is independent of theirs.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::{format, generate, render_progressive, scene, Settings};
+
+/// What to render.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Options {
+    /// Generated scenes.
+    pub count: usize,
+    /// Image width and height.
+    pub size: usize,
+    /// Noisy sample counts.
+    pub spp: Vec<u32>,
+    /// Reference sample count.
+    pub ref_spp: u32,
+    /// Base seed of the scene generator and the renders.
+    pub seed: u64,
+    /// Also render the named stress scenes into the test split.
+    pub named: bool,
+}
+
+/// One finished scene.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Record {
+    /// Scene name (directory name).
+    pub name: String,
+    /// "train", "val" or "test".
+    pub split: String,
+    /// Directory relative to the data set root.
+    pub dir: String,
+    /// Noisy files by spp.
+    pub noisy: Vec<(u32, String)>,
+    /// Reference file.
+    pub reference: String,
+    /// Seconds for the noisy progressive render and for the reference.
+    pub seconds_noisy: f64,
+    /// Seconds for the reference.
+    pub seconds_reference: f64,
+    /// The scene's features (what the kernel simulated).
+    pub features: String,
+}
+
+/// The data set's summary, written as `manifest.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Settings.
+    pub options: Options,
+    /// Layers in every EXR.
+    pub layers: Vec<String>,
+    /// Finished scenes.
+    pub scenes: Vec<Record>,
+    /// Total render seconds, noisy.
+    pub seconds_noisy: f64,
+    /// Total render seconds, references.
+    pub seconds_reference: f64,
+}
+
+/// Which split a generated scene belongs to: 80 % train, 10 % validation, 10 % test,
+/// decided by a hash of its index so growing `count` keeps earlier assignments.
+pub fn split_of(index: usize) -> &'static str {
+    let mut h = (index as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    h ^= h >> 29;
+    match h % 10 {
+        8 => "val",
+        9 => "test",
+        _ => "train",
+    }
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Renders the data set; `log` gets one line per scene. Returns the manifest.
+pub fn run(
+    opts: &Options,
+    out: &Path,
+    log: &dyn Fn(&str),
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Manifest, String> {
+    if opts.spp.is_empty() || opts.spp.contains(&0) || opts.ref_spp == 0 || opts.size < 8 {
+        return Err("need --spp values > 0, --ref-spp > 0 and --size >= 8".into());
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let settings_path = out.join("dataset.json");
+    if settings_path.exists() {
+        let old: Options = serde_json::from_str(
+            &std::fs::read_to_string(&settings_path).map_err(|e| e.to_string())?,
+        )
+        .map_err(|e| format!("{}: {e}", settings_path.display()))?;
+        let same = Options {
+            count: old.count,
+            ..opts.clone()
+        } == old;
+        if !same {
+            return Err(format!(
+                "{} was made with other settings ({old:?}); use another --out",
+                out.display()
+            ));
+        }
+    }
+    write_atomic(
+        &settings_path,
+        serde_json::to_string_pretty(opts).unwrap().as_bytes(),
+    )?;
+
+    let mut jobs: Vec<(String, &'static str, String)> = Vec::new();
+    for i in 0..opts.count {
+        let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
+        jobs.push((
+            format!("scene-{i:05}"),
+            split_of(i),
+            generate::scene_text(seed),
+        ));
+    }
+    if opts.named {
+        for (name, _, text) in scene::NAMED {
+            if name != "furnace" {
+                jobs.push((format!("named-{name}"), "test", text.to_string()));
+            }
+        }
+    }
+    let mut records = Vec::new();
+    for (k, (name, split, text)) in jobs.iter().enumerate() {
+        let dir: PathBuf = out.join(split).join(name);
+        let done = dir.join("done.json");
+        if let Ok(t) = std::fs::read_to_string(&done) {
+            if let Ok(r) = serde_json::from_str::<Record>(&t) {
+                records.push(r);
+                continue;
+            }
+        }
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        write_atomic(&dir.join("scene.txt"), text.as_bytes())?;
+        let sc = format::parse(text, name, None)?;
+        let base = Settings {
+            width: opts.size,
+            height: opts.size,
+            spp: 1,
+            seed: opts.seed ^ (k as u64 + 1).wrapping_mul(0x2545_f491_4f6c_dd1d),
+            max_depth: 12,
+            specialise: true,
+        };
+        let t0 = Instant::now();
+        let noisy = render_progressive(&sc, &base, &opts.spp, progress, cancel)
+            .map_err(|_| "cancelled".to_string())?;
+        let seconds_noisy = t0.elapsed().as_secs_f64();
+        let mut sorted = opts.spp.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        let mut files = Vec::new();
+        for (spp, img) in sorted.iter().zip(&noisy) {
+            let f = format!("spp{spp:04}.exr");
+            img.write_exr(&dir.join(&f))?;
+            files.push((*spp, f));
+        }
+        let t1 = Instant::now();
+        let reference = render_progressive(
+            &sc,
+            &Settings {
+                seed: !base.seed,
+                ..base
+            },
+            &[opts.ref_spp],
+            progress,
+            cancel,
+        )
+        .map_err(|_| "cancelled".to_string())?;
+        let seconds_reference = t1.elapsed().as_secs_f64();
+        reference[0].write_exr(&dir.join("ref.exr"))?;
+        let r = Record {
+            name: name.clone(),
+            split: split.to_string(),
+            dir: format!("{split}/{name}"),
+            noisy: files,
+            reference: "ref.exr".into(),
+            seconds_noisy,
+            seconds_reference,
+            features: format!("{:?}", sc.features()),
+        };
+        write_atomic(&done, serde_json::to_string_pretty(&r).unwrap().as_bytes())?;
+        log(&format!(
+            "{}/{}: {split}/{name}: noisy {seconds_noisy:.1} s, reference {seconds_reference:.1} s",
+            k + 1,
+            jobs.len()
+        ));
+        records.push(r);
+        write_manifest(opts, out, &records)?;
+    }
+    write_manifest(opts, out, &records)
+}
+
+fn write_manifest(opts: &Options, out: &Path, records: &[Record]) -> Result<Manifest, String> {
+    let mut layers = vec![
+        "color.R", "color.G", "color.B", "albedo.R", "albedo.G", "albedo.B", "normal.X",
+        "normal.Y", "normal.Z", "depth.Z",
+    ]
+    .into_iter()
+    .map(String::from)
+    .collect::<Vec<_>>();
+    layers.extend((0..crate::film::BANDS).map(|b| format!("spectral.b{b:02}")));
+    let m = Manifest {
+        options: opts.clone(),
+        layers,
+        scenes: records.to_vec(),
+        seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
+        seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
+    };
+    write_atomic(
+        &out.join("manifest.json"),
+        serde_json::to_string_pretty(&m).unwrap().as_bytes(),
+    )?;
+    Ok(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_are_roughly_80_10_10() {
+        let mut n = std::collections::HashMap::new();
+        for i in 0..1000 {
+            *n.entry(split_of(i)).or_insert(0) += 1;
+        }
+        for (s, lo, hi) in [("train", 740, 860), ("val", 60, 140), ("test", 60, 140)] {
+            assert!((lo..=hi).contains(&n[s]), "{s}: {}", n[s]);
+        }
+    }
+}

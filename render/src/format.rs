@@ -1,0 +1,589 @@
+//! The scene file format: one statement per line, `#` starts a comment, keys may come in
+//! any order. Errors name the file and line.
+//!
+//! ```text
+//! camera eye X Y Z target X Y Z fov DEGREES
+//! environment SPECTRUM [scale S]
+//! material NAME diffuse reflectance TEX
+//! material NAME conductor metal Au|Ag|Cu|Al [roughness STEX]
+//! material NAME dielectric (ior N | cauchy A B | sellmeier bk7|sf11 | sellmeier B1 B2 B3 C1 C2 C3) [roughness STEX]
+//! material NAME plastic reflectance TEX [ior N] [roughness STEX]
+//! material NAME emitter SPECTRUM [scale S]
+//! sphere center X Y Z radius R material NAME
+//! quad corner X Y Z edge1 X Y Z edge2 X Y Z material NAME
+//! box min X Y Z max X Y Z [rotate DEGREES] material NAME
+//! prism center X Y Z size S height H [rotate DEGREES] material NAME
+//! torus center X Y Z radii MAJOR MINOR [tilt DEGREES] material NAME
+//! mesh file PATH.obj [scale S] [rotate DEGREES] [translate X Y Z] material NAME
+//!
+//! TEX      = rgb R G B | PATTERN R G B R G B FREQ
+//! STEX     = VALUE | PATTERN A B FREQ          (GGX alpha; 0 is smooth)
+//! PATTERN  = checker | stripes | noise | fine
+//! SPECTRUM = constant V | blackbody KELVIN | d65 | fluorescent | laser NM [WIDTH_NM] | rgb R G B
+//! ```
+//!
+//! Emitter and environment `scale` is a luminance: the spectrum is divided by its own
+//! luminance first, so a D65 lamp and a laser with the same scale are equally bright.
+//! `rotate` turns about the vertical (y) axis; `tilt` about x. Mesh paths are relative to
+//! the scene file.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::material::{metal, metal_albedo, Ior, Material, BK7, SF11};
+use crate::scene::{spiky_lamp, Camera, Scene};
+use crate::shape::{boxed, prism, rotate_y, torus, Prim};
+use crate::spectrum::Spectrum;
+use crate::texture::{Pattern, Texture};
+use crate::vec3::V3;
+
+struct Cursor<'a> {
+    toks: Vec<&'a str>,
+    pos: usize,
+}
+
+type Res<T> = Result<T, String>;
+
+impl<'a> Cursor<'a> {
+    fn done(&self) -> bool {
+        self.pos >= self.toks.len()
+    }
+    fn peek(&self) -> Option<&'a str> {
+        self.toks.get(self.pos).copied()
+    }
+    fn word(&mut self, what: &str) -> Res<&'a str> {
+        let t = self
+            .peek()
+            .ok_or_else(|| format!("expected {what} at the end of the line"))?;
+        self.pos += 1;
+        Ok(t)
+    }
+    fn num(&mut self, what: &str) -> Res<f32> {
+        let t = self.word(what)?;
+        match t.parse::<f32>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(format!("expected a number for {what}, found '{t}'")),
+        }
+    }
+    fn pos_num(&mut self, what: &str) -> Res<f32> {
+        let v = self.num(what)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("{what} must be positive, found {v}"))
+        }
+    }
+    fn next_is_num(&self) -> bool {
+        self.peek().is_some_and(|t| t.parse::<f32>().is_ok())
+    }
+    fn v3(&mut self, what: &str) -> Res<V3> {
+        Ok(V3(self.num(what)?, self.num(what)?, self.num(what)?))
+    }
+    fn rgb(&mut self, what: &str) -> Res<[f32; 3]> {
+        let c = [self.num(what)?, self.num(what)?, self.num(what)?];
+        if c.iter().any(|v| !(0.0..=1.0).contains(v)) {
+            return Err(format!("{what} must lie in [0, 1], found {c:?}"));
+        }
+        Ok(c)
+    }
+    fn pattern(&mut self) -> Option<Pattern> {
+        let p = match self.peek()? {
+            "checker" => Pattern::Checker,
+            "stripes" => Pattern::Stripes,
+            "noise" => Pattern::Noise,
+            "fine" => Pattern::Fine,
+            _ => return None,
+        };
+        self.pos += 1;
+        Some(p)
+    }
+    fn texture(&mut self) -> Res<Texture> {
+        if let Some(pattern) = self.pattern() {
+            let a = self.rgb("a texture colour")?;
+            let b = self.rgb("a texture colour")?;
+            let freq = self.pos_num("a texture frequency")?;
+            return Ok(Texture {
+                pattern,
+                a,
+                b,
+                freq,
+            });
+        }
+        match self.word("a texture (rgb, checker, stripes, noise, fine)")? {
+            "rgb" => Ok(Texture::uniform(self.rgb("an rgb colour")?)),
+            t => Err(format!(
+                "unknown texture '{t}' (rgb, checker, stripes, noise, fine)"
+            )),
+        }
+    }
+    fn scalar_texture(&mut self, lo: f32, hi: f32) -> Res<Texture> {
+        let check = |v: f32| {
+            if (lo..=hi).contains(&v) {
+                Ok(v)
+            } else {
+                Err(format!("value must lie in [{lo}, {hi}], found {v}"))
+            }
+        };
+        if let Some(pattern) = self.pattern() {
+            let a = check(self.num("a texture value")?)?;
+            let b = check(self.num("a texture value")?)?;
+            let freq = self.pos_num("a texture frequency")?;
+            return Ok(Texture {
+                pattern,
+                a: [a; 3],
+                b: [b; 3],
+                freq,
+            });
+        }
+        Ok(Texture::scalar(check(self.num("a value")?)?))
+    }
+    fn spectrum(&mut self) -> Res<Spectrum> {
+        match self.word("a spectrum")? {
+            "constant" => Ok(Spectrum::Constant(self.pos_num("the constant")?)),
+            "blackbody" => {
+                let k = self.pos_num("the temperature")?;
+                if !(500.0..=50000.0).contains(&k) {
+                    return Err(format!("blackbody temperature {k} K is outside 500..50000"));
+                }
+                Ok(Spectrum::Blackbody(k))
+            }
+            "d65" => Ok(Spectrum::d65()),
+            "fluorescent" => Ok(spiky_lamp()),
+            "laser" => {
+                let nm = self.num("the laser wavelength")?;
+                if !(380.0..=780.0).contains(&nm) {
+                    return Err(format!("laser wavelength {nm} nm is outside 380..780"));
+                }
+                let w = if self.next_is_num() {
+                    self.pos_num("the line width")?
+                } else {
+                    1.0
+                };
+                Ok(Spectrum::laser(nm, w))
+            }
+            "rgb" => Ok(Spectrum::Rgb(self.rgb("an rgb spectrum")?)),
+            t => Err(format!(
+                "unknown spectrum '{t}' (constant, blackbody, d65, fluorescent, laser, rgb)"
+            )),
+        }
+    }
+}
+
+/// Scales a spectrum by `scale` over its luminance; refuses black spectra.
+fn emitter(spectrum: Spectrum, scale: f32) -> Res<(Spectrum, f32)> {
+    let lum = spectrum.luminance();
+    if lum <= 0.0 {
+        return Err("the spectrum has no visible power".into());
+    }
+    Ok((spectrum, scale / lum))
+}
+
+struct Builder<'p> {
+    materials: Vec<Material>,
+    names: HashMap<String, usize>,
+    objects: Vec<(Vec<Prim>, usize)>,
+    environment: Option<(Spectrum, f32)>,
+    camera: Option<Camera>,
+    dir: Option<&'p Path>,
+}
+
+impl Builder<'_> {
+    fn statement(&mut self, c: &mut Cursor) -> Res<()> {
+        let head = c.word("a statement")?;
+        match head {
+            "camera" => {
+                let (mut eye, mut target, mut fov) = (None, None, None);
+                while !c.done() {
+                    match c.word("a key")? {
+                        "eye" => eye = Some(c.v3("eye")?),
+                        "target" => target = Some(c.v3("target")?),
+                        "fov" => {
+                            let f = c.pos_num("fov")?;
+                            if f >= 179.0 {
+                                return Err(format!("fov {f} must be below 179 degrees"));
+                            }
+                            fov = Some(f)
+                        }
+                        k => return Err(format!("unknown camera key '{k}' (eye, target, fov)")),
+                    }
+                }
+                let eye = eye.ok_or("camera needs 'eye'")?;
+                let target = target.ok_or("camera needs 'target'")?;
+                if (target - eye).len() <= 0.0 {
+                    return Err("camera eye and target coincide".into());
+                }
+                let dir = (target - eye).norm();
+                if dir.1.abs() > 0.999 {
+                    return Err("camera must not look straight up or down".into());
+                }
+                self.camera = Some(Camera {
+                    eye,
+                    target,
+                    fov_deg: fov.unwrap_or(40.0),
+                });
+            }
+            "environment" => {
+                let s = c.spectrum()?;
+                let mut scale = 1.0;
+                while !c.done() {
+                    match c.word("a key")? {
+                        "scale" => scale = c.pos_num("scale")?,
+                        k => return Err(format!("unknown environment key '{k}' (scale)")),
+                    }
+                }
+                self.environment = Some(emitter(s, scale)?);
+            }
+            "material" => {
+                let name = c.word("a material name")?;
+                if self.names.contains_key(name) {
+                    return Err(format!("material '{name}' is defined twice"));
+                }
+                let m = self.material(c)?;
+                self.names.insert(name.to_string(), self.materials.len());
+                self.materials.push(m);
+            }
+            "sphere" | "quad" | "box" | "prism" | "torus" | "mesh" => {
+                let mut kv: HashMap<&str, Vec<f32>> = HashMap::new();
+                let mut material = None;
+                let mut file = None;
+                while !c.done() {
+                    let key = c.word("a key")?;
+                    let arity = match (head, key) {
+                        (_, "material") => {
+                            let n = c.word("a material name")?;
+                            material = Some(
+                                *self
+                                    .names
+                                    .get(n)
+                                    .ok_or_else(|| format!("unknown material '{n}'"))?,
+                            );
+                            continue;
+                        }
+                        ("mesh", "file") => {
+                            file = Some(c.word("a file name")?);
+                            continue;
+                        }
+                        ("sphere", "center") | ("prism", "center") | ("torus", "center") => 3,
+                        ("sphere", "radius") => 1,
+                        ("quad", "corner" | "edge1" | "edge2") => 3,
+                        ("box", "min" | "max") => 3,
+                        ("prism", "size" | "height") => 1,
+                        ("torus", "radii") => 2,
+                        ("mesh", "translate") => 3,
+                        ("mesh", "scale") => 1,
+                        ("box" | "prism" | "mesh", "rotate") | ("torus", "tilt") => 1,
+                        _ => return Err(format!("unknown {head} key '{key}'")),
+                    };
+                    let vals = (0..arity)
+                        .map(|_| c.num(key))
+                        .collect::<Res<Vec<f32>>>()?;
+                    if kv.insert(key, vals).is_some() {
+                        return Err(format!("'{key}' given twice"));
+                    }
+                }
+                let material = material.ok_or_else(|| format!("{head} needs 'material'"))?;
+                let get = |k: &str| {
+                    kv.get(k)
+                        .cloned()
+                        .ok_or_else(|| format!("{head} needs '{k}'"))
+                };
+                let opt = |k: &str, d: f32| kv.get(k).map_or(d, |v| v[0]);
+                let v3 = |v: Vec<f32>| V3(v[0], v[1], v[2]);
+                let positive = |v: f32, what: &str| {
+                    if v > 0.0 {
+                        Ok(v)
+                    } else {
+                        Err(format!("{what} must be positive"))
+                    }
+                };
+                let prims = match head {
+                    "sphere" => vec![Prim::Sphere {
+                        c: v3(get("center")?),
+                        r: positive(get("radius")?[0], "radius")?,
+                    }],
+                    "quad" => {
+                        let (e1, e2) = (v3(get("edge1")?), v3(get("edge2")?));
+                        if e1.cross(e2).len() <= 0.0 {
+                            return Err("quad edges are parallel".into());
+                        }
+                        vec![Prim::Quad {
+                            p: v3(get("corner")?),
+                            e1,
+                            e2,
+                        }]
+                    }
+                    "box" => {
+                        let (lo, hi) = (v3(get("min")?), v3(get("max")?));
+                        if !(lo.0 < hi.0 && lo.1 < hi.1 && lo.2 < hi.2) {
+                            return Err("box min must be below max on every axis".into());
+                        }
+                        boxed(lo, hi, opt("rotate", 0.0))
+                    }
+                    "prism" => prism(
+                        v3(get("center")?),
+                        positive(get("size")?[0], "size")?,
+                        positive(get("height")?[0], "height")?,
+                        opt("rotate", 0.0),
+                    ),
+                    "torus" => {
+                        let r = get("radii")?;
+                        if !(r[0] > r[1] && r[1] > 0.0) {
+                            return Err("torus radii must satisfy MAJOR > MINOR > 0".into());
+                        }
+                        torus(v3(get("center")?), r[0], r[1], opt("tilt", 0.0))
+                    }
+                    _ => {
+                        let file = file.ok_or("mesh needs 'file'")?;
+                        let dir = self
+                            .dir
+                            .ok_or("mesh files need the scene to come from a file")?;
+                        let path = dir.join(file);
+                        let text = std::fs::read_to_string(&path)
+                            .map_err(|e| format!("{}: {e}", path.display()))?;
+                        let tris = crate::obj::parse(&text, &path.display().to_string())?;
+                        let s = positive(opt("scale", 1.0), "scale")?;
+                        let rot = opt("rotate", 0.0);
+                        let t = kv.get("translate").cloned().map_or(V3::default(), v3);
+                        let xf = |p: V3| rotate_y(p * s, rot) + t;
+                        tris.into_iter()
+                            .map(|p| match p {
+                                Prim::Triangle { p0, e1, e2 } => {
+                                    let a = xf(p0);
+                                    Prim::Triangle {
+                                        p0: a,
+                                        e1: xf(p0 + e1) - a,
+                                        e2: xf(p0 + e2) - a,
+                                    }
+                                }
+                                p => p,
+                            })
+                            .collect()
+                    }
+                };
+                self.objects.push((prims, material));
+            }
+            h => {
+                return Err(format!(
+                    "unknown statement '{h}' (camera, environment, material, sphere, quad, box, prism, torus, mesh)"
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    fn material(&mut self, c: &mut Cursor) -> Res<Material> {
+        let kind = c.word("a material kind")?;
+        let mut reflectance = None;
+        let mut roughness = Texture::scalar(0.0);
+        let mut ior = None;
+        let mut metal_name = None;
+        let mut spectrum = None;
+        let mut scale = 1.0;
+        if kind == "emitter" {
+            spectrum = Some(c.spectrum()?);
+        }
+        while !c.done() {
+            match (kind, c.word("a key")?) {
+                ("diffuse" | "plastic", "reflectance") => reflectance = Some(c.texture()?),
+                ("conductor" | "dielectric" | "plastic", "roughness") => {
+                    roughness = c.scalar_texture(0.0, 1.0)?
+                }
+                ("conductor", "metal") => {
+                    let n = c.word("a metal")?;
+                    metal_name = Some(
+                        metal(n)
+                            .map(|m| (n, m))
+                            .ok_or_else(|| format!("unknown metal '{n}' (Au, Ag, Cu, Al)"))?,
+                    );
+                }
+                ("dielectric" | "plastic", "ior") => {
+                    let n = c.num("ior")?;
+                    if !(1.0..=4.0).contains(&n) {
+                        return Err(format!("ior {n} is outside 1..4"));
+                    }
+                    ior = Some(Ior::Constant(n));
+                }
+                ("dielectric", "cauchy") => {
+                    ior = Some(Ior::Cauchy {
+                        a: c.pos_num("cauchy A")?,
+                        b: c.num("cauchy B")?,
+                    })
+                }
+                ("dielectric", "sellmeier") => {
+                    ior = Some(if c.next_is_num() {
+                        let mut b = [0.0; 3];
+                        let mut cc = [0.0; 3];
+                        for v in &mut b {
+                            *v = c.num("a Sellmeier B")?;
+                        }
+                        for v in &mut cc {
+                            *v = c.num("a Sellmeier C")?;
+                        }
+                        Ior::Sellmeier { b, c: cc }
+                    } else {
+                        match c.word("a glass name")? {
+                            "bk7" => BK7,
+                            "sf11" => SF11,
+                            g => return Err(format!("unknown glass '{g}' (bk7, sf11)")),
+                        }
+                    })
+                }
+                ("emitter", "scale") => scale = c.pos_num("scale")?,
+                (_, k) => return Err(format!("unknown key '{k}' for a {kind} material")),
+            }
+        }
+        if let Some(i) = ior {
+            for l in [380.0, 580.0, 780.0] {
+                let n = i.eval(l);
+                if !(n.is_finite() && (1.0..=4.0).contains(&n)) {
+                    return Err(format!("ior evaluates to {n} at {l} nm"));
+                }
+            }
+        }
+        Ok(match kind {
+            "diffuse" => Material::Diffuse {
+                reflectance: reflectance.ok_or("diffuse needs 'reflectance'")?,
+            },
+            "conductor" => {
+                let (_, m) = metal_name.ok_or("conductor needs 'metal'")?;
+                Material::Conductor {
+                    albedo: metal_albedo(&m),
+                    metal: m,
+                    roughness,
+                }
+            }
+            "dielectric" => Material::Dielectric {
+                ior: ior.ok_or("dielectric needs 'ior', 'cauchy' or 'sellmeier'")?,
+                roughness,
+            },
+            "plastic" => Material::Plastic {
+                reflectance: reflectance.ok_or("plastic needs 'reflectance'")?,
+                ior: match ior {
+                    Some(Ior::Constant(n)) => n,
+                    _ => 1.5,
+                },
+                roughness,
+            },
+            "emitter" => {
+                let (radiance, scale) = emitter(spectrum.expect("read above"), scale)?;
+                Material::Emitter { radiance, scale }
+            }
+            k => {
+                return Err(format!(
+                    "unknown material kind '{k}' (diffuse, conductor, dielectric, plastic, emitter)"
+                ))
+            }
+        })
+    }
+}
+
+/// Parses scene text. `name` names the scene and prefixes errors; `dir` is where mesh
+/// paths are resolved (None: meshes are refused).
+pub fn parse(text: &str, name: &str, dir: Option<&Path>) -> Result<Scene, String> {
+    let mut b = Builder {
+        materials: Vec::new(),
+        names: HashMap::new(),
+        objects: Vec::new(),
+        environment: None,
+        camera: None,
+        dir,
+    };
+    for (ln, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        let mut c = Cursor {
+            toks: line.split_whitespace().collect(),
+            pos: 0,
+        };
+        if c.done() {
+            continue;
+        }
+        b.statement(&mut c)
+            .map_err(|e| format!("{name}:{}: {e}", ln + 1))?;
+    }
+    let camera = b.camera.ok_or(format!("{name}: no 'camera' statement"))?;
+    if b.objects.is_empty() {
+        return Err(format!("{name}: no shapes"));
+    }
+    let lit = b.environment.is_some()
+        || b.objects
+            .iter()
+            .any(|(_, m)| matches!(b.materials[*m], Material::Emitter { .. }));
+    if !lit {
+        return Err(format!(
+            "{name}: nothing emits light (add an emitter material or an environment)"
+        ));
+    }
+    Ok(Scene::new(
+        name,
+        b.materials,
+        b.objects,
+        b.environment,
+        camera,
+    ))
+}
+
+/// Reads a scene file; its mesh paths resolve next to it.
+pub fn load(path: &Path) -> Result<Scene, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let name = path
+        .file_stem()
+        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    parse(&text, &name, path.parent())
+        .map_err(|e| e.replacen(&name, &path.display().to_string(), 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OK: &str = "camera eye 0 1 -3 target 0 0 0 fov 40\n\
+        material w diffuse reflectance checker 0.8 0.8 0.8 0.1 0.1 0.1 4\n\
+        material l emitter blackbody 4000 scale 10\n\
+        sphere center 0 0 0 radius 1 material w\n\
+        quad corner -1 2 -1 edge1 2 0 0 edge2 0 0 2 material l\n";
+
+    #[test]
+    fn parses_a_small_scene() {
+        let s = parse(OK, "ok", None).unwrap();
+        assert_eq!(s.prims.len(), 2);
+        assert_eq!(s.lights().len(), 1);
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let cases = [
+            ("camera eye 0 0 0 target 0 0 1\nmaterial w diffuse reflectance rgb 2 0 0\n", 2, "[0, 1]"),
+            ("camera eye 0 0 0 target 0 0 1\nsphere center 0 0 0 radius 1 material nope\n", 2, "unknown material"),
+            ("camera eye 0 0 0 target 0 0 1\n\n# c\nfoo bar\n", 4, "unknown statement"),
+            ("camera eye 0 0 x target 0 0 1\n", 1, "expected a number"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial g dielectric sellmeier crown\n", 2, "unknown glass"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial m conductor metal Fe\n", 2, "unknown metal"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial l emitter laser 900\n", 2, "380..780"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial w diffuse reflectance rgb 1 1 1\nsphere center 0 0 0 material w\n", 3, "needs 'radius'"),
+        ];
+        for (text, line, msg) in cases {
+            let e = parse(text, "t.scene", None).unwrap_err();
+            assert!(
+                e.starts_with(&format!("t.scene:{line}:")) && e.contains(msg),
+                "{e}"
+            );
+        }
+        let e = parse("camera eye 0 0 0 target 0 0 1\n", "t", None).unwrap_err();
+        assert!(e.contains("no shapes"), "{e}");
+    }
+
+    #[test]
+    fn meshes_load_relative_to_the_scene_file() {
+        let dir = std::env::temp_dir().join(format!("temc-render-mesh-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let scene = format!("{OK}mesh file tri.obj scale 2 translate 0 0 1 material w\n");
+        std::fs::write(dir.join("m.scene"), &scene).unwrap();
+        let s = load(&dir.join("m.scene")).unwrap();
+        assert_eq!(s.prims.len(), 3);
+        std::fs::write(dir.join("bad.scene"), scene.replace("tri.obj", "nope.obj")).unwrap();
+        let e = load(&dir.join("bad.scene")).unwrap_err();
+        assert!(e.contains("bad.scene:6:"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
