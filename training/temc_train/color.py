@@ -10,6 +10,7 @@ import numpy as np
 LINEAR_MAX = 65504.0
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 NITS_PER_UNIT = 100.0
+AUTO_EXPOSURE_KEY = 0.18  # src/color/mod.rs: scale = key / log-average luminance
 PQ_MAX_NITS = 10000.0
 HIGHLIGHT_KNEE = np.float32(0.95)
 

@@ -1,0 +1,146 @@
+"""Train one architecture on a `temc-render dataset` folder, resumably, on a wall-clock
+budget.
+
+    python -m temc_train.train --data ../data/spectral-v1 --arch temc2 --width 0.125 \\
+        --run runs/temc2-w0.125 --hours 1.5
+
+The budget counts the seconds spent in training steps (validation excluded), so every
+architecture gets the same compute. Rerunning the same command resumes from
+RUN/checkpoint.pt (model, optimiser, step, clock and random state), saved every
+`--save-minutes` and at the end. RUN/log.csv records step, training seconds and the
+validation loss, which is what the accuracy report plots as training time against
+validation loss. RUN/model.pt is the final checkpoint in the form `export.py --checkpoint`
+reads.
+
+Recipe (the paper's where it fits): Adam, learning rate 1e-4, random 128x128 crops with
+flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`), aux dropout (`data.py`).
+"""
+
+import argparse
+import csv
+import os
+import time
+
+import numpy as np
+import torch
+
+from . import data
+from .loss import mix_loss
+from .models import ARCHS, build, count_params
+
+
+def _save(obj, path):
+    tmp = path + f".tmp-{os.getpid()}"
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def validate(model, val, batch=8) -> float:
+    model.eval()
+    total, n = 0.0, 0
+    with torch.no_grad():
+        for i in range(0, len(val[0]), batch):
+            xs = [torch.from_numpy(v[i:i + batch]) for v in val]
+            pred = model(*xs[:3])
+            total += float(mix_loss(pred, xs[3])) * len(xs[0])
+            n += len(xs[0])
+    model.train()
+    return total / max(n, 1)
+
+
+def train(a) -> dict:
+    torch.set_num_threads(a.threads)
+    os.makedirs(a.run, exist_ok=True)
+    ckpt_path = os.path.join(a.run, "checkpoint.pt")
+    train_scenes = data.load_split(a.data, "train")
+    val_scenes = data.load_split(a.data, "val")
+    if not train_scenes:
+        raise SystemExit(f"{a.data}: no finished training scenes yet")
+    val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
+    torch.manual_seed(a.seed)
+    model = build(a.arch, a.width)
+    opt = torch.optim.Adam(model.parameters(), lr=a.lr)
+    state = {"step": 0, "train_s": 0.0, "rng": np.random.default_rng(a.seed).bit_generator.state}
+    if os.path.exists(ckpt_path):
+        ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        if (ck["arch"], ck["width"]) != (a.arch, a.width):
+            raise SystemExit(f"{ckpt_path} holds {ck['arch']} at width {ck['width']}")
+        model.load_state_dict(ck["model"])
+        opt.load_state_dict(ck["opt"])
+        state = ck["state"]
+        print(f"resuming at step {state['step']}, {state['train_s']:.0f} s trained", flush=True)
+    rng = np.random.default_rng()
+    rng.bit_generator.state = state["rng"]
+    log_path = os.path.join(a.run, "log.csv")
+    new_log = not os.path.exists(log_path)
+    log = open(log_path, "a", newline="")
+    w = csv.writer(log)
+    if new_log:
+        w.writerow(["step", "train_seconds", "train_loss", "val_loss"])
+    budget = a.hours * 3600.0
+    last_save = last_val = time.monotonic()
+    ema = None
+
+    def checkpoint():
+        state["rng"] = rng.bit_generator.state
+        _save({"model": model.state_dict(), "opt": opt.state_dict(), "state": state,
+               "arch": a.arch, "width": a.width}, ckpt_path)
+
+    if state["step"] == 0:
+        w.writerow([0, 0.0, "", f"{validate(model, val):.6f}"])
+        log.flush()
+    model.train()
+    while state["train_s"] < budget and state["step"] < a.max_steps:
+        t0 = time.monotonic()
+        xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
+        loss = mix_loss(model(*xs[:3]), xs[3])
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        state["train_s"] += time.monotonic() - t0
+        state["step"] += 1
+        ema = float(loss) if ema is None else 0.98 * ema + 0.02 * float(loss)
+        now = time.monotonic()
+        done = state["train_s"] >= budget or state["step"] >= a.max_steps
+        if now - last_val >= a.val_minutes * 60 or done:
+            v = validate(model, val)
+            w.writerow([state["step"], f"{state['train_s']:.1f}", f"{ema:.6f}", f"{v:.6f}"])
+            log.flush()
+            print(f"step {state['step']}  {state['train_s']:.0f}/{budget:.0f} s  "
+                  f"train {ema:.4f}  val {v:.4f}", flush=True)
+            last_val = time.monotonic()
+        if now - last_save >= a.save_minutes * 60 or done:
+            checkpoint()
+            last_save = time.monotonic()
+    checkpoint()
+    log.close()
+    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width,
+             "dataset": os.path.basename(os.path.normpath(a.data)),
+             "train_steps": state["step"], "train_seconds": state["train_s"],
+             "params": count_params(model)}
+    _save(final, os.path.join(a.run, "model.pt"))
+    return final
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", required=True, help="a temc-render dataset folder")
+    ap.add_argument("--arch", choices=ARCHS, required=True)
+    ap.add_argument("--width", type=float, required=True)
+    ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
+    ap.add_argument("--hours", type=float, default=1.0, help="training-time budget")
+    ap.add_argument("--max-steps", type=int, default=10**9)
+    ap.add_argument("--batch", type=int, default=4)
+    ap.add_argument("--crop", type=int, default=data.CROP)
+    ap.add_argument("--lr", type=float, default=1e-4)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--val-minutes", type=float, default=5.0)
+    ap.add_argument("--save-minutes", type=float, default=5.0)
+    a = ap.parse_args(argv)
+    f = train(a)
+    print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} s -> {a.run}/model.pt")
+
+
+if __name__ == "__main__":
+    main()

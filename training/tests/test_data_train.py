@@ -1,0 +1,130 @@
+"""The data loader and the resumable training loop, on a tiny synthetic data set laid
+out like `temc-render dataset` output."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from temc_train import data, export, train
+
+SIZE = 32
+
+
+def write_exr(path, layers):
+    import Imath
+    import OpenEXR
+
+    h, w = layers["color"].shape[:2]
+    header = OpenEXR.Header(w, h)
+    ch = {}
+    pix = {}
+    for layer, comps in (("color", "RGB"), ("albedo", "RGB"), ("normal", "XYZ")):
+        for i, c in enumerate(comps):
+            ch[f"{layer}.{c}"] = Imath.Channel(Imath.PixelType(Imath.PixelType.FLOAT))
+            pix[f"{layer}.{c}"] = np.ascontiguousarray(layers[layer][..., i], np.float32).tobytes()
+    ch["depth.Z"] = Imath.Channel(Imath.PixelType(Imath.PixelType.FLOAT))
+    pix["depth.Z"] = np.ascontiguousarray(layers["depth"], np.float32).tobytes()
+    header["channels"] = ch
+    f = OpenEXR.OutputFile(str(path), header)
+    f.writePixels(pix)
+    f.close()
+
+
+def fake_scene(rng, noise):
+    yy, xx = np.mgrid[0:SIZE, 0:SIZE] / SIZE
+    ref = np.stack([0.2 + 0.6 * xx, 0.3 + 0.3 * yy, 0.5 * np.ones_like(xx)], -1).astype(np.float32)
+    n = np.stack([xx - 0.5, yy - 0.5, np.ones_like(xx)], -1)
+    layers = {
+        "albedo": ref.clip(0, 1),
+        "normal": (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32),
+        "depth": (1 + xx).astype(np.float32),
+    }
+    noisy = {**layers, "color": (ref * rng.exponential(1.0, ref.shape) ** noise).astype(np.float32)}
+    return noisy, {**layers, "color": ref}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ds")
+    rng = np.random.default_rng(1)
+    records = []
+    for i, split in enumerate(["train", "train", "val"]):
+        name = f"scene-{i:05}"
+        d = root / split / name
+        d.mkdir(parents=True)
+        noisy = []
+        for spp in (1, 4):
+            img, ref = fake_scene(rng, 1.0 / spp)
+            write_exr(d / f"spp{spp:04}.exr", img)
+            noisy.append([spp, f"spp{spp:04}.exr"])
+        write_exr(d / "ref.exr", ref)
+        (d / "scene.txt").write_text("camera eye 0 0 -3 target 0 0 0 fov 40\n")
+        records.append({"name": name, "split": split, "dir": f"{split}/{name}", "noisy": noisy,
+                        "reference": "ref.exr", "seconds_noisy": 0, "seconds_reference": 0,
+                        "features": ""})
+    (root / "manifest.json").write_text(json.dumps({"scenes": records}))
+    return str(root)
+
+
+def test_samples_have_the_network_shapes_and_ranges(dataset):
+    scenes = data.load_split(dataset, "train")
+    assert len(scenes) == 2 and scenes[0].spp == [1, 4]
+    rng = np.random.default_rng(0)
+    chroma, luma, aux, target = data.batch(scenes, rng, 3, crop=16)
+    assert chroma.shape == (3, 2, 16, 16) and luma.shape == (3, 1, 16, 16)
+    assert aux.shape == (3, 7, 16, 16) and target.shape == (3, 3, 16, 16)
+    for x in (chroma, luma, aux, target):
+        assert x.dtype == np.float32 and np.isfinite(x).all()
+        assert x.min() >= 0 and x.max() <= 1
+
+
+def test_aux_dropout_uses_the_contract_fill(dataset):
+    sc = data.load_split(dataset, "train")[0]
+    rng = np.random.default_rng(0)
+    _, _, aux, _ = data.make_sample(sc, rng, 16, aux_mode="none")
+    assert (aux[:3] == 0).all() and np.allclose(aux[3:6], 0.5) and (aux[6] == 0).all()
+    _, _, aux, _ = data.make_sample(sc, rng, 16, aux_mode="albedo")
+    assert aux[:3].max() > 0 and np.allclose(aux[3:6], 0.5)
+
+
+def test_normals_follow_the_image_transform():
+    # Normals that point away from the image centre (camera space: x right, y up) must
+    # still do so after every flip and rotation.
+    c = 8
+    yy, xx = np.mgrid[0:c, 0:c] - (c - 1) / 2
+    n = np.stack([xx, -yy, np.zeros_like(xx)], -1).astype(np.float32)  # image y points down
+    for flip in (False, True):
+        for k in range(4):
+            t = data._transform_normal(n, flip, k)
+            ty, tx = np.mgrid[0:c, 0:c] - (c - 1) / 2
+            assert np.allclose(t[..., 0], tx) and np.allclose(t[..., 1], -ty), (flip, k)
+
+
+def test_auto_exposure_matches_the_core_rule():
+    img = np.full((4, 4, 3), 0.5, np.float32)
+    assert data.auto_input_scale(img) == pytest.approx(0.18 / 0.5, rel=1e-6)
+    assert data.auto_input_scale(np.zeros((2, 2, 3), np.float32)) == 1.0
+
+
+def test_camera_frame_matches_the_renderer():
+    f = data.camera_frame("camera eye 0 0 -3 target 0 0 0 fov 40")
+    assert np.allclose(f, [[1, 0, 0], [0, 1, 0], [0, 0, -1]], atol=1e-6)
+
+
+def test_training_resumes_and_exports(dataset, tmp_path):
+    run = str(tmp_path / "run")
+    args = ["--data", dataset, "--arch", "ae", "--width", "0.0625", "--run", run,
+            "--crop", "32", "--batch", "2", "--val-minutes", "0", "--threads", "1"]
+    train.main(args + ["--max-steps", "2"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["state"]["step"] == 2
+    train.main(args + ["--max-steps", "4"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["state"]["step"] == 4
+    rows = open(os.path.join(run, "log.csv")).read().splitlines()
+    assert rows[0].startswith("step") and rows[-1].startswith("4,")
+    model, arch, width, info = export.load_checkpoint(os.path.join(run, "model.pt"))
+    assert (arch, width, info["train_steps"]) == ("ae", 0.0625, 4)
