@@ -131,3 +131,89 @@ fn info_prints_the_model_card() {
     let card: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(card["temc.architecture"], "temc2");
 }
+
+#[test]
+fn color_only_ignores_aux_layers_in_the_colour_file() {
+    use exr::prelude::*;
+    let d = scratch("color-only");
+    let (w, h) = (40, 30);
+    let names = [
+        "color.R", "color.G", "color.B", "albedo.R", "albedo.G", "albedo.B", "normal.X",
+        "normal.Y", "normal.Z", "depth.Z",
+    ];
+    let ch: Vec<AnyChannel<FlatSamples>> = names
+        .iter()
+        .map(|n| AnyChannel::new(*n, FlatSamples::F32(vec![0.5; w * h])))
+        .collect();
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(ch.into()),
+    );
+    Image::from_layer(layer)
+        .write()
+        .to_file(d.join("in.exr"))
+        .unwrap();
+    for (flag, expect) in [(None, true), (Some("--color-only"), false)] {
+        let mut cmd = temc();
+        cmd.args(["denoise", "--model", MODEL, "--json", "--color"])
+            .arg(d.join("in.exr"))
+            .arg("-o")
+            .arg(d.join("out.pfm"));
+        if let Some(f) = flag {
+            cmd.arg(f);
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        for aux in ["albedo", "normal", "depth"] {
+            assert_eq!(report["aux"][aux], expect, "{flag:?} {aux}");
+        }
+    }
+    // --color-only with an explicit aux file is a contradiction.
+    let out = temc()
+        .args(["denoise", "--model", MODEL, "--color-only", "--color"])
+        .arg(d.join("in.exr"))
+        .arg("--albedo")
+        .arg(d.join("in.exr"))
+        .arg("-o")
+        .arg(d.join("x.pfm"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn bench_reports_timings() {
+    let out = temc()
+        .args([
+            "bench", "--model", MODEL, "--size", "64x48", "--repeat", "2", "--aux", "albedo",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (r["width"].as_u64(), r["height"].as_u64()),
+        (Some(64), Some(48))
+    );
+    assert_eq!(r["seconds"].as_array().unwrap().len(), 2);
+    assert!(r["median_seconds"].as_f64().unwrap() > 0.0);
+    assert_eq!(r["aux"], "albedo");
+    let bad = temc()
+        .args(["bench", "--model", MODEL, "--size", "0x5"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+}

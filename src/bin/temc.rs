@@ -21,6 +21,16 @@ struct Cli {
     command: Command,
 }
 
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum AuxArg {
+    /// Colour only.
+    None,
+    /// Colour and albedo.
+    Albedo,
+    /// Colour, albedo, normal and depth.
+    Full,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum QualityArg {
     Fast,
@@ -68,6 +78,34 @@ enum Command {
         /// Print timings, tiles and peak memory as JSON on stdout.
         #[arg(long)]
         json: bool,
+        /// Denoise from the colour alone, ignoring aux layers in the colour file.
+        #[arg(long, conflicts_with_all = ["albedo", "normal", "depth"])]
+        color_only: bool,
+    },
+    /// Time the filter on a synthetic image: one warm-up run (which builds the plan), then
+    /// `--repeat` timed runs, like OIDN's oidnBenchmark.
+    Bench {
+        /// A temc ONNX model file.
+        #[arg(long)]
+        model: PathBuf,
+        /// Image size, WxH.
+        #[arg(long, default_value = "1920x1080")]
+        size: String,
+        /// Worker threads (default: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Timed runs after the warm-up.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Which aux buffers to pass.
+        #[arg(long, value_enum, default_value = "full")]
+        aux: AuxArg,
+        /// Memory budget in MB for the filter.
+        #[arg(long, default_value_t = temc::filter::DEFAULT_MAX_MEMORY_MB)]
+        max_memory_mb: usize,
+        /// Print the result as JSON on stdout.
+        #[arg(long)]
+        json: bool,
     },
     /// Print the metadata (model card) of a temc ONNX model.
     Info {
@@ -98,6 +136,15 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> temc::Result<()> {
     match cli.command {
         Command::Info { model, json } => info(&model, json),
+        Command::Bench {
+            model,
+            size,
+            threads,
+            repeat,
+            aux,
+            max_memory_mb,
+            json,
+        } => bench(&model, &size, threads, repeat, aux, max_memory_mb, json),
         Command::Denoise {
             color,
             albedo,
@@ -111,9 +158,13 @@ fn run(cli: Cli) -> temc::Result<()> {
             max_memory_mb,
             tile_size,
             json,
+            color_only,
         } => {
             let t0 = Instant::now();
             let mut bufs = io::read(&color)?;
+            if color_only {
+                (bufs.albedo, bufs.normal, bufs.depth) = (None, None, None);
+            }
             if bufs.color.is_none() {
                 return Err(temc::Error::InvalidArgument(format!(
                     "{}: no colour channels found",
@@ -315,6 +366,96 @@ fn info(model: &Path, json: bool) -> temc::Result<()> {
         if info.is_untrained() {
             println!("  (untrained weights: for tests and benchmarks only)");
         }
+    }
+    Ok(())
+}
+
+fn bench(
+    model: &Path,
+    size: &str,
+    threads: usize,
+    repeat: usize,
+    aux: AuxArg,
+    max_memory_mb: usize,
+    json: bool,
+) -> temc::Result<()> {
+    let (w, h) = size
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
+        .filter(|&(w, h)| w > 0 && h > 0)
+        .ok_or_else(|| temc::Error::InvalidArgument(format!("--size {size:?}: expected WxH")))?;
+    let weights = std::fs::read(model).map_err(|source| temc::Error::Io {
+        path: model.to_path_buf(),
+        source,
+    })?;
+    let kind = Model::from_bytes(&weights)?
+        .info()
+        .architecture
+        .to_ascii_uppercase();
+    // A deterministic noisy gradient; the timing does not depend on the content.
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut noise = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let color: Vec<f32> = (0..w * h * 3)
+        .map(|i| (i % (w * 3)) as f32 / (w * 3) as f32 * 2.0 * noise())
+        .collect();
+    let albedo = vec![0.5f32; w * h * 3];
+    let normal: Vec<f32> = (0..w * h).flat_map(|_| [0.0f32, 0.0, 1.0]).collect();
+    let depth = vec![1.0f32; w * h];
+    let device = Device::new();
+    device.set_num_threads(threads);
+    device.commit()?;
+    let mut f = Filter::new(&device, &kind)?;
+    f.set_weights(&weights);
+    f.set_input_f32("color", &color, w, h)?;
+    if aux != AuxArg::None {
+        f.set_input_f32("albedo", &albedo, w, h)?;
+    }
+    if aux == AuxArg::Full {
+        f.set_input_f32("normal", &normal, w, h)?;
+        let bytes = unsafe {
+            // SAFETY: f32 is four plain bytes; the view lives as long as `depth`.
+            std::slice::from_raw_parts(depth.as_ptr() as *const u8, depth.len() * 4)
+        };
+        f.set_input("depth", bytes, Layout::packed(Format::Float, w, h))?;
+    }
+    f.set_max_memory_mb(max_memory_mb);
+    let t = Instant::now();
+    f.commit()?;
+    f.execute_to_vec()?;
+    let warmup_s = t.elapsed().as_secs_f64();
+    let mut times = Vec::with_capacity(repeat);
+    for _ in 0..repeat.max(1) {
+        let t = Instant::now();
+        f.execute_to_vec()?;
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let (min, median) = (times[0], times[times.len() / 2]);
+    if json {
+        let report = serde_json::json!({
+            "model": model, "architecture": kind, "width": w, "height": h,
+            "threads": if threads == 0 {
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            } else {
+                threads
+            },
+            "aux": match aux { AuxArg::None => "none", AuxArg::Albedo => "albedo", AuxArg::Full => "full" },
+            "warmup_seconds": warmup_s, "seconds": times, "min_seconds": min,
+            "median_seconds": median,
+            "megapixels_per_second": (w * h) as f64 / median / 1e6,
+        });
+        println!("{report}");
+    } else {
+        println!(
+            "{kind} {w}x{h}: median {median:.3} s, min {min:.3} s over {} runs ({:.2} MP/s; warm-up with plan build {warmup_s:.2} s)",
+            times.len(),
+            (w * h) as f64 / median / 1e6
+        );
     }
     Ok(())
 }

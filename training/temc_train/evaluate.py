@@ -1,0 +1,137 @@
+"""Error metrics, and the denoisers the accuracy report compares: temc models through the
+`temc` command line, and OIDN 2.5 through pyoidn.
+
+Metrics (all against the reference render):
+- RelMSE: mean of (x - r)^2 / (r^2 + 0.01) over pixels and channels, linear values.
+- SMAPE: mean of |x - r| / (|x| + |r| + 0.01), linear values.
+- PSNR and SSIM on PQ-encoded R'G'B' (the core's PQ at the reference's automatic
+  exposure): perceptually even steps, so errors in shadows and highlights weigh alike.
+- Delta E ITP (ITU-R BT.2124): ICtCp from the PQ-encoded Rec.2020 LMS, at 100 cd/m^2 per
+  unit after the automatic exposure; the chroma error the paper's colour split targets.
+"""
+
+import json
+import os
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from . import color
+from .data import auto_input_scale, read_exr
+
+EPS = 0.01
+
+# BT.709 -> BT.2020 (BT.2087), and BT.2020 -> LMS of BT.2100 ICtCp.
+M709_2020 = np.array([[0.6274039, 0.3292830, 0.0433131],
+                      [0.0690973, 0.9195404, 0.0113623],
+                      [0.0163914, 0.0880133, 0.8955953]])
+M2020_LMS = np.array([[1688, 2146, 262], [683, 2951, 462], [99, 309, 3688]]) / 4096.0
+
+
+def relmse(x, r):
+    return float(np.mean((x - r) ** 2 / (r * r + EPS)))
+
+
+def smape(x, r):
+    return float(np.mean(np.abs(x - r) / (np.abs(x) + np.abs(r) + EPS)))
+
+
+def _pq(x, r):
+    s = auto_input_scale(r)
+    return color.to_pq(x, s)[0].astype(np.float64), color.to_pq(r, s)[0].astype(np.float64)
+
+
+def psnr_pq(x, r):
+    a, b = _pq(x, r)
+    mse = np.mean((a - b) ** 2)
+    return float(10 * np.log10(1.0 / max(mse, 1e-12)))
+
+
+def ssim_pq(x, r):
+    """Mean SSIM (Gaussian window sigma 1.5, 11 taps) over the PQ channels."""
+    a, b = (torch.from_numpy(np.moveaxis(v, -1, 0)[:, None].copy()) for v in _pq(x, r))
+    g = torch.exp(-0.5 * (torch.arange(-5, 6, dtype=torch.float64) / 1.5) ** 2)
+    g = (g / g.sum())
+    k = (g[:, None] * g[None]).view(1, 1, 11, 11)
+    blur = lambda t: F.conv2d(F.pad(t, (5,) * 4, mode="replicate"), k)
+    ma, mb = blur(a), blur(b)
+    saa, sbb, sab = blur(a * a) - ma ** 2, blur(b * b) - mb ** 2, blur(a * b) - ma * mb
+    c1, c2 = 0.01 ** 2, 0.03 ** 2
+    s = ((2 * ma * mb + c1) * (2 * sab + c2)) / ((ma ** 2 + mb ** 2 + c1) * (saa + sbb + c2))
+    return float(s.mean())
+
+
+def ictcp(rgb, scale):
+    lin = color.sanitize_rgb(rgb).astype(np.float64) * scale * color.NITS_PER_UNIT / color.PQ_MAX_NITS
+    lms = lin @ M709_2020.T @ M2020_LMS.T
+    p = color.pq_encode(np.clip(lms, 0, 1))
+    i = 0.5 * p[..., 0] + 0.5 * p[..., 1]
+    ct = (6610 * p[..., 0] - 13613 * p[..., 1] + 7003 * p[..., 2]) / 4096
+    cp = (17933 * p[..., 0] - 17390 * p[..., 1] - 543 * p[..., 2]) / 4096
+    return i, ct, cp
+
+
+def delta_e_itp(x, r):
+    s = auto_input_scale(r)
+    (i1, t1, p1), (i2, t2, p2) = ictcp(x, s), ictcp(r, s)
+    return float(np.mean(720 * np.sqrt((i1 - i2) ** 2 + (0.5 * (t1 - t2)) ** 2 + (p1 - p2) ** 2)))
+
+
+METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim_pq,
+           "dE-ITP": delta_e_itp}
+
+
+def all_metrics(x, r) -> dict:
+    return {k: f(x, r) for k, f in METRICS.items()}
+
+
+def read_pfm(path):
+    with open(path, "rb") as f:
+        kind = f.readline().strip()
+        w, h = (int(v) for v in f.readline().split())
+        scale = float(f.readline())
+        data = np.frombuffer(f.read(), "<f4" if scale < 0 else ">f4")
+    ch = 3 if kind == b"PF" else 1
+    return np.flipud(data.reshape(h, w, ch)).astype(np.float32)
+
+
+def temc_denoise(binary, model, exr, threads=2, aux=True):
+    """Runs `temc denoise` on a temc-render EXR; returns (image, denoise seconds)."""
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "out.pfm")
+        cmd = [binary, "denoise", "--model", model, "--color", exr, "-o", out, "--json",
+               "--threads", str(threads)]
+        if not aux:
+            cmd += ["--color-only"]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)}: {r.stderr.strip()}")
+        rep = json.loads(r.stdout.strip().splitlines()[-1])
+        return read_pfm(out), rep["seconds"]["denoise"]
+
+
+def oidn_denoise(layers, quality="high", aux=True):
+    """OIDN 2.5 (pyoidn) in HDR mode with albedo and normal; returns (image, seconds).
+    The first call per quality warms pyoidn's cached filter up and is not timed."""
+    import pyoidn
+
+    args = dict(hdr=True, quality=quality)
+    c = np.ascontiguousarray(layers["color"], np.float32)
+    a = np.ascontiguousarray(layers["albedo"], np.float32) if aux else None
+    n = np.ascontiguousarray(layers["normal"], np.float32) if aux else None
+    key = (quality, aux, c.shape)
+    if key not in _warm:
+        pyoidn.denoise(c, a, n, **args)
+        _warm.add(key)
+    t = time.perf_counter()
+    out = pyoidn.denoise(c, a, n, **args)
+    return np.asarray(out, np.float32), time.perf_counter() - t
+
+
+_warm = set()
+
+__all__ = ["all_metrics", "read_exr", "temc_denoise", "oidn_denoise", "METRICS"]
