@@ -15,6 +15,12 @@ fn root() -> &'static Path {
 
 /// Builds libtemc.so for this test profile and the examples; returns the examples' folder.
 fn build_examples() -> PathBuf {
+    // Tests run in parallel: build once.
+    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BUILT.get_or_init(build_examples_once).clone()
+}
+
+fn build_examples_once() -> PathBuf {
     let release = !cfg!(debug_assertions);
     let mut cargo = Command::new(env!("CARGO"));
     cargo
@@ -137,5 +143,94 @@ fn c_examples_build_and_behave() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(!dir.join("bad_out.pfm").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn installed_tree_links_through_pkg_config() {
+    build_examples(); // the release (or debug) library this test profile uses
+    let release = !cfg!(debug_assertions);
+    if !release {
+        return; // `make install` installs the release build
+    }
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    let dir = std::env::temp_dir().join(format!("temc-install-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let prefix = dir.join("prefix");
+    let status = Command::new("make")
+        .current_dir(root())
+        .args(["--quiet", "install-only"])
+        .arg(format!("PREFIX={}", prefix.display()))
+        .arg(format!("TARGET_DIR={}", target.display()))
+        .status()
+        .expect("make");
+    assert!(status.success(), "make install-only failed");
+    let lib = prefix.join("lib");
+    for f in [
+        "libtemc.so",
+        "libtemc.so.0",
+        "libtemc.a",
+        "pkgconfig/temc.pc",
+    ] {
+        assert!(lib.join(f).exists(), "{f} not installed");
+    }
+    assert!(prefix.join("include/temc.h").exists());
+    let soname = Command::new("readelf")
+        .arg("-d")
+        .arg(lib.join("libtemc.so"))
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&soname.stdout).contains("[libtemc.so.0]"));
+
+    // Build the PFM example from the installed tree only, shared and static.
+    let src = root().join("c-examples/denoise.c");
+    let sh = |script: String| {
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(&script)
+            .env("PKG_CONFIG_PATH", lib.join("pkgconfig"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{script}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let (shared, fixed) = (dir.join("denoise_shared"), dir.join("denoise_static"));
+    sh(format!(
+        "cc -std=c99 -O2 -Wall -Werror {src} -o {out} $(pkg-config --cflags --libs temc) \
+         -Wl,-rpath,$(pkg-config --variable=libdir temc)",
+        src = src.display(),
+        out = shared.display()
+    ));
+    sh(format!(
+        "cc -std=c99 -O2 -Wall -Werror {src} -o {out} $(pkg-config --cflags temc) \
+         $(pkg-config --variable=libdir temc)/libtemc.a \
+         $(pkg-config --static --libs-only-l temc | sed 's/-ltemc//')",
+        src = src.display(),
+        out = fixed.display()
+    ));
+    let (w, h) = (37, 21);
+    let color: Vec<f32> = (0..w * h * 3).map(|i| (i % 17) as f32 / 17.0).collect();
+    write_pfm(&dir.join("c.pfm"), w, h, &color);
+    let mut outs = Vec::new();
+    for (bin, name) in [(&shared, "s.pfm"), (&fixed, "t.pfm")] {
+        let run = Command::new(bin)
+            .arg(root().join(MODEL))
+            .arg(dir.join("c.pfm"))
+            .arg("-o")
+            .arg(dir.join(name))
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        outs.push(read_pfm(&dir.join(name)).2);
+    }
+    assert_eq!(outs[0], outs[1], "shared and static builds must agree");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -140,7 +140,11 @@ pub fn run(
     }
     for i in 0..opts.count {
         let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
-        jobs.push((format!("scene-{i:05}"), split_of(i), generate::scene_text(seed)));
+        jobs.push((
+            format!("scene-{i:05}"),
+            split_of(i),
+            generate::scene_text(seed),
+        ));
     }
     let mut records = Vec::new();
     for (k, (name, split, text)) in jobs.iter().enumerate() {
