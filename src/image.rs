@@ -79,6 +79,11 @@ impl Format {
 /// The largest width or height accepted: far above any render, far below overflow.
 pub const MAX_DIMENSION: usize = 1 << 20;
 
+/// The most pixels an image may have (16384 x 16384): larger sizes are refused as
+/// invalid arguments before anything is allocated, instead of failing halfway through
+/// gigabytes of staging buffers.
+pub const MAX_PIXELS: usize = 1 << 28;
+
 /// Where an image's pixels are in its buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
@@ -140,6 +145,12 @@ impl Layout {
         if self.width > MAX_DIMENSION || self.height > MAX_DIMENSION {
             return bad(format!(
                 "size {}x{} exceeds the limit of {MAX_DIMENSION} per side",
+                self.width, self.height
+            ));
+        }
+        if self.width * self.height > MAX_PIXELS {
+            return bad(format!(
+                "size {}x{} exceeds the limit of {MAX_PIXELS} pixels",
                 self.width, self.height
             ));
         }
