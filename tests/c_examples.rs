@@ -234,3 +234,95 @@ fn installed_tree_links_through_pkg_config() {
     assert_eq!(outs[0], outs[1], "shared and static builds must agree");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn c_programs_run_clean_under_asan_and_valgrind() {
+    let bin = build_examples();
+    let status = Command::new("make")
+        .current_dir(root().join("c-examples"))
+        .arg("asan")
+        .arg(format!("OUT={}", bin.display()))
+        .arg(format!(
+            "TEMC_LIB={}",
+            bin.parent()
+                .unwrap()
+                .join(if cfg!(debug_assertions) {
+                    "debug"
+                } else {
+                    "release"
+                })
+                .display()
+        ))
+        .status()
+        .expect("make asan");
+    assert!(status.success(), "building the ASan programs failed");
+    let dir = std::env::temp_dir().join(format!("temc-san-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (29, 17);
+    let color: Vec<f32> = (0..w * h * 3).map(|i| (i % 13) as f32 / 5.0).collect();
+    write_pfm(&dir.join("c.pfm"), w, h, &color);
+    write_pfm(&dir.join("a.pfm"), w, h, &vec![0.5; w * h * 3]);
+    let model = root().join(MODEL);
+    let denoise_args = |out: &str| -> Vec<std::ffi::OsString> {
+        vec![
+            model.clone().into(),
+            dir.join("c.pfm").into(),
+            "-a".into(),
+            dir.join("a.pfm").into(),
+            "-o".into(),
+            dir.join(out).into(),
+        ]
+    };
+    let check = |what: &str, out: std::process::Output| {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success() && !err.contains("Sanitizer") && !err.contains("definitely lost"),
+            "{what}: {}\n{err}",
+            out.status
+        );
+    };
+    // AddressSanitizer with leak detection.
+    let asan = |prog: &str, args: Vec<std::ffi::OsString>| {
+        Command::new(bin.join("asan").join(prog))
+            .args(args)
+            .env("ASAN_OPTIONS", "detect_leaks=1")
+            .output()
+            .unwrap()
+    };
+    check(
+        "misuse under ASan",
+        asan("misuse", vec![model.clone().into()]),
+    );
+    check(
+        "denoise under ASan",
+        asan("denoise", denoise_args("asan.pfm")),
+    );
+    // Valgrind's memcheck on the plain builds: no invalid access, nothing definitely or
+    // indirectly lost.
+    let vg = |prog: &str, args: Vec<std::ffi::OsString>| {
+        Command::new("valgrind")
+            .args([
+                "-q",
+                "--error-exitcode=99",
+                "--leak-check=full",
+                "--errors-for-leak-kinds=definite,indirect",
+            ])
+            .arg(bin.join(prog))
+            .args(args)
+            .output()
+            .expect("valgrind must be installed (apt-get install valgrind)")
+    };
+    check(
+        "misuse under valgrind",
+        vg("misuse", vec![model.clone().into()]),
+    );
+    check(
+        "denoise under valgrind",
+        vg("denoise", denoise_args("vg.pfm")),
+    );
+    assert_eq!(
+        read_pfm(&dir.join("asan.pfm")).2,
+        read_pfm(&dir.join("vg.pfm")).2
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
