@@ -45,12 +45,53 @@ fn split(full: &str) -> (String, String) {
 
 /// Reads an EXR file into the buffers its channel names identify.
 pub fn read(path: &Path) -> std::result::Result<Buffers, TemcError> {
-    let image = read_all_flat_layers_from_file(path).map_err(|e| {
-        TemcError::InvalidArgument(format!(
-            "{}: not a readable OpenEXR file: {e}",
-            path.display()
-        ))
+    let bytes = std::fs::read(path).map_err(|source| TemcError::Io {
+        path: path.to_path_buf(),
+        source,
     })?;
+    parse(&bytes, &path.display().to_string())
+}
+
+/// Parses EXR bytes; `name` prefixes error messages. The header is checked against the
+/// image limits before any pixel is decoded, so a hostile header cannot make the decoder
+/// allocate gigabytes (the fuzz target `exr` checks that any input gives a result or an
+/// `InvalidArgument` error).
+pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError> {
+    let bad =
+        |e: String| TemcError::InvalidArgument(format!("{name}: not a readable OpenEXR file: {e}"));
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| bad(e.to_string()))?;
+    let mut total = 0usize;
+    for header in &meta.headers {
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        let px = w.checked_mul(h).unwrap_or(usize::MAX);
+        total = total.saturating_add(px.saturating_mul(header.channels.list.len()));
+        if w > crate::image::MAX_DIMENSION
+            || h > crate::image::MAX_DIMENSION
+            || px > crate::image::MAX_PIXELS
+            || header.deep
+        {
+            return Err(bad(format!("unsupported layer of {w}x{h} pixels")));
+        }
+    }
+    // Decoded samples cannot exceed what the file can hold: deflate, the strongest of
+    // EXR's codecs, expands at most about 1032:1, so half-float data stays under ~516
+    // samples per byte. A header claiming more is lying, and is refused before the
+    // decoder allocates for it.
+    if total > bytes.len().saturating_mul(1024).max(1 << 16) {
+        return Err(bad(format!(
+            "{total} samples cannot come from {} bytes",
+            bytes.len()
+        )));
+    }
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| bad(e.to_string()))?;
     let mut size = None;
     // (pass, channel letter) -> samples
     let mut channels: HashMap<(String, String), Vec<f32>> = HashMap::new();
@@ -60,10 +101,8 @@ pub fn read(path: &Path) -> std::result::Result<Buffers, TemcError> {
             None => size = Some((w, h)),
             Some(s) if s != (w, h) => {
                 return Err(TemcError::InvalidArgument(format!(
-                    "{}: layers of different sizes ({}x{} and {w}x{h})",
-                    path.display(),
-                    s.0,
-                    s.1
+                    "{name}: layers of different sizes ({}x{} and {w}x{h})",
+                    s.0, s.1
                 )))
             }
             _ => {}
@@ -79,7 +118,7 @@ pub fn read(path: &Path) -> std::result::Result<Buffers, TemcError> {
         }
     }
     let (width, height) =
-        size.ok_or_else(|| TemcError::InvalidArgument(format!("{}: no layers", path.display())))?;
+        size.ok_or_else(|| TemcError::InvalidArgument(format!("{name}: no layers")))?;
     let find3 = |passes: &[&str], letters: [&[&str]; 3]| -> Option<Vec<f32>> {
         for pass in passes {
             let pick = |options: &[&str]| {
@@ -119,8 +158,7 @@ pub fn read(path: &Path) -> std::result::Result<Buffers, TemcError> {
     }
     if out.color.is_none() && out.depth.is_none() && out.albedo.is_none() && out.normal.is_none() {
         return Err(TemcError::InvalidArgument(format!(
-            "{}: no colour, albedo, normal or depth channels recognised",
-            path.display()
+            "{name}: no colour, albedo, normal or depth channels recognised"
         )));
     }
     Ok(out)

@@ -10,7 +10,13 @@ use crate::Error;
 /// Reads a PFM file; RGB goes to `color`, one channel to `depth`.
 pub fn read(path: &Path) -> Result<Buffers, Error> {
     let bytes = std::fs::read(path).map_err(io_err(path))?;
-    let bad = |m: &str| Error::InvalidArgument(format!("{}: {m}", path.display()));
+    parse(&bytes, &path.display().to_string())
+}
+
+/// Parses PFM bytes; `name` prefixes error messages. Any input gives a result or an
+/// `InvalidArgument` error (the fuzz target `pfm` checks this).
+pub fn parse(bytes: &[u8], name: &str) -> Result<Buffers, Error> {
+    let bad = |m: &str| Error::InvalidArgument(format!("{name}: {m}"));
     // Header: three whitespace-separated tokens after the magic, then one whitespace byte.
     let mut tokens = Vec::new();
     let mut pos = 0;
@@ -36,7 +42,12 @@ pub fn read(path: &Path) -> Result<Buffers, Error> {
     let w: usize = tokens[1].parse().map_err(|_| bad("bad width"))?;
     let h: usize = tokens[2].parse().map_err(|_| bad("bad height"))?;
     let scale: f64 = tokens[3].parse().map_err(|_| bad("bad scale"))?;
-    if w == 0 || h == 0 || w > crate::image::MAX_DIMENSION || h > crate::image::MAX_DIMENSION {
+    if w == 0
+        || h == 0
+        || w > crate::image::MAX_DIMENSION
+        || h > crate::image::MAX_DIMENSION
+        || w * h > crate::image::MAX_PIXELS
+    {
         return Err(bad("image size out of range"));
     }
     let n = w * h * channels;
