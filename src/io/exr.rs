@@ -64,7 +64,7 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
     let mut total = 0usize;
     for header in &meta.headers {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
-        let px = w.checked_mul(h).unwrap_or(usize::MAX);
+        let px = w.saturating_mul(h);
         total = total.saturating_add(px.saturating_mul(header.channels.list.len()));
         if w > crate::image::MAX_DIMENSION
             || h > crate::image::MAX_DIMENSION
