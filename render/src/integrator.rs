@@ -181,10 +181,8 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
             Material::Diffuse { reflectance } => {
                 let rgb = reflectance.eval(u, v);
                 aux.get_or_insert((rgb, hit.n));
-                let rho = Spectrum::Rgb(rgb).sample(&wl);
-                next_event(scene, &hit, mul(beta, rho), &wl, rng, &mut radiance);
-                let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
-                beta = mul(beta, rho);
+                let (wi, pdf) =
+                    diffuse_bounce(scene, &hit, rgb, &wl, &mut beta, rng, &mut radiance);
                 prev_pdf = pdf;
                 (wi, false)
             }
@@ -212,10 +210,8 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                         (wi, false)
                     }
                 } else {
-                    let rho = Spectrum::Rgb(rgb).sample(&wl);
-                    next_event(scene, &hit, mul(beta, rho), &wl, rng, &mut radiance);
-                    let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
-                    beta = mul(beta, rho);
+                    let (wi, pdf) =
+                        diffuse_bounce(scene, &hit, rgb, &wl, &mut beta, rng, &mut radiance);
                     prev_pdf = pdf;
                     (wi, false)
                 }
@@ -307,6 +303,25 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
         normal,
         depth: depth0,
     }
+}
+
+/// The Lambertian lobe (of diffuse surfaces and of plastic's base): one light sample,
+/// then a cosine-weighted bounce. Updates `beta` and returns the new direction and its
+/// solid-angle density (for MIS on the next emitter hit).
+fn diffuse_bounce(
+    scene: &Scene,
+    hit: &Hit,
+    rgb: [f32; 3],
+    wl: &Wavelengths,
+    beta: &mut Lanes,
+    rng: &mut Rng,
+    radiance: &mut Lanes,
+) -> (V3, f32) {
+    let rho = Spectrum::Rgb(rgb).sample(wl);
+    next_event(scene, hit, mul(*beta, rho), wl, rng, radiance);
+    let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
+    *beta = mul(*beta, rho);
+    (wi, pdf)
 }
 
 /// Solid-angle density with which next-event estimation picks the point `hit` on light

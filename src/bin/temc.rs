@@ -211,14 +211,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                         .into(),
                 ));
             };
-            let weights = std::fs::read(&model).map_err(|source| temc::Error::Io {
-                path: model.clone().into(),
-                source,
-            })?;
-            let kind = Model::from_bytes(&weights)?
-                .info()
-                .architecture
-                .to_ascii_uppercase();
+            let (weights, kind) = read_model(Path::new(&model))?;
 
             let device = Device::new();
             device.set_num_threads(threads);
@@ -370,6 +363,19 @@ fn info(model: &Path, json: bool) -> temc::Result<()> {
     Ok(())
 }
 
+/// A model file's bytes and the filter type its architecture needs.
+fn read_model(path: &Path) -> temc::Result<(Vec<u8>, String)> {
+    let weights = std::fs::read(path).map_err(|source| temc::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let kind = Model::from_bytes(&weights)?
+        .info()
+        .architecture
+        .to_ascii_uppercase();
+    Ok((weights, kind))
+}
+
 fn bench(
     model: &Path,
     size: &str,
@@ -384,14 +390,7 @@ fn bench(
         .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
         .filter(|&(w, h)| w > 0 && h > 0)
         .ok_or_else(|| temc::Error::InvalidArgument(format!("--size {size:?}: expected WxH")))?;
-    let weights = std::fs::read(model).map_err(|source| temc::Error::Io {
-        path: model.to_path_buf(),
-        source,
-    })?;
-    let kind = Model::from_bytes(&weights)?
-        .info()
-        .architecture
-        .to_ascii_uppercase();
+    let (weights, kind) = read_model(model)?;
     // A deterministic noisy gradient; the timing does not depend on the content.
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut noise = move || {

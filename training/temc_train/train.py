@@ -4,8 +4,10 @@ budget.
     python -m temc_train.train --data ../data/spectral-v1 --arch temc2 --width 0.125 \\
         --run runs/temc2-w0.125 --hours 1.5
 
-The budget counts the seconds spent in training steps (validation excluded), so every
-architecture gets the same compute. Rerunning the same command resumes from
+The budget counts the CPU seconds (process time) spent in training steps, validation
+excluded, so every architecture gets the same compute even when runs share the machine or
+other work slows them; with `--threads 1` on an otherwise idle core this equals wall-clock
+time. Rerunning the same command resumes from
 RUN/checkpoint.pt (model, optimiser, step, clock and random state), saved every
 `--save-minutes` and at the end. RUN/log.csv records step, training seconds and the
 validation loss, which is what the accuracy report plots as training time against
@@ -91,15 +93,16 @@ def train(a) -> dict:
         log.flush()
     model.train()
     while state["train_s"] < budget and state["step"] < a.max_steps:
-        t0 = time.monotonic()
+        t0 = time.process_time()
         xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
         loss = mix_loss(model(*xs[:3]), xs[3])
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
-        state["train_s"] += time.monotonic() - t0
+        state["train_s"] += time.process_time() - t0
         state["step"] += 1
-        ema = float(loss) if ema is None else 0.98 * ema + 0.02 * float(loss)
+        l = float(loss.detach())
+        ema = l if ema is None else 0.98 * ema + 0.02 * l
         now = time.monotonic()
         done = state["train_s"] >= budget or state["step"] >= a.max_steps
         if now - last_val >= a.val_minutes * 60 or done:
@@ -128,7 +131,8 @@ def main(argv=None):
     ap.add_argument("--arch", choices=ARCHS, required=True)
     ap.add_argument("--width", type=float, required=True)
     ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
-    ap.add_argument("--hours", type=float, default=1.0, help="training-time budget")
+    ap.add_argument("--hours", type=float, default=1.0,
+                    help="training budget in CPU hours spent in steps")
     ap.add_argument("--max-steps", type=int, default=10**9)
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--crop", type=int, default=data.CROP)
