@@ -21,11 +21,18 @@ impl Bytes<'_> {
         self.1 += 1;
         Some(b)
     }
+    /// An element chosen by the next byte; `None` when the bytes or the slice are empty.
     fn pick<'b, T>(&mut self, v: &'b [T]) -> Option<&'b T> {
-        Some(&v[self.u8()? as usize % v.len()])
+        let i = self.u8()? as usize;
+        v.get(i % v.len().max(1))
     }
     fn i32(&mut self) -> Option<i32> {
-        Some(i32::from_le_bytes([self.u8()?, self.u8()?, self.u8()?, self.u8()?]))
+        Some(i32::from_le_bytes([
+            self.u8()?,
+            self.u8()?,
+            self.u8()?,
+            self.u8()?,
+        ]))
     }
 }
 
@@ -42,31 +49,55 @@ fuzz_target!(|data: &[u8]| {
     let mut input = vec![0.25f32; BUF_BYTES / 4];
     let mut output = vec![0f32; BUF_BYTES / 4];
     let mut calls = 0u32;
-    let names: Vec<CString> = ["color", "albedo", "normal", "depth", "output", "weights", "hdr",
-        "srgb", "cleanAux", "quality", "maxMemoryMB", "tileSize", "inputScale", "numThreads",
-        "setAffinity", "verbose", "", "bogus"]
-        .iter()
-        .map(|s| CString::new(*s).unwrap())
-        .collect();
+    let names: Vec<CString> = [
+        "color",
+        "albedo",
+        "normal",
+        "depth",
+        "output",
+        "weights",
+        "hdr",
+        "srgb",
+        "cleanAux",
+        "quality",
+        "maxMemoryMB",
+        "tileSize",
+        "inputScale",
+        "numThreads",
+        "setAffinity",
+        "verbose",
+        "",
+        "bogus",
+    ]
+    .iter()
+    .map(|s| CString::new(*s).unwrap())
+    .collect();
     let kinds: Vec<CString> = ["AE", "TEMC2", "DEMC", "RT", ""]
         .iter()
         .map(|s| CString::new(*s).unwrap())
         .collect();
     let formats = [
-        TEMC_FORMAT_UNDEFINED, TEMC_FORMAT_FLOAT, TEMC_FORMAT_FLOAT2, TEMC_FORMAT_FLOAT3,
-        TEMC_FORMAT_FLOAT4, TEMC_FORMAT_HALF, TEMC_FORMAT_HALF2, TEMC_FORMAT_HALF3,
-        TEMC_FORMAT_HALF4, 77,
+        TEMC_FORMAT_UNDEFINED,
+        TEMC_FORMAT_FLOAT,
+        TEMC_FORMAT_FLOAT2,
+        TEMC_FORMAT_FLOAT3,
+        TEMC_FORMAT_FLOAT4,
+        TEMC_FORMAT_HALF,
+        TEMC_FORMAT_HALF2,
+        TEMC_FORMAT_HALF3,
+        TEMC_FORMAT_HALF4,
+        77,
     ];
     let null_dev: TEMCDevice = std::ptr::null_mut();
     for _ in 0..64 {
         let Some(op) = b.u8() else { break };
-        let dev = |b: &mut Bytes| -> TEMCDevice {
-            b.pick(&devices).copied().unwrap_or(null_dev)
-        };
+        let dev = |b: &mut Bytes| -> TEMCDevice { b.pick(&devices).copied().unwrap_or(null_dev) };
         let filt = |b: &mut Bytes| -> TEMCFilter {
             b.pick(&filters).copied().unwrap_or(std::ptr::null_mut())
         };
-        let Some(name) = b.pick(&names).map(|n| n.as_ptr()) else { break };
+        let Some(name) = b.pick(&names).map(|n| n.as_ptr()) else {
+            break;
+        };
         match op % 18 {
             0 => devices.push(temcNewDevice((op / 18) as u32 % 3)),
             1 => temcCommitDevice(dev(&mut b)),
@@ -78,12 +109,20 @@ fuzz_target!(|data: &[u8]| {
                 let _ = temcGetDeviceInt(dev(&mut b), name);
             }
             4 => {
-                let Some(kind) = b.pick(&kinds).map(|k| k.as_ptr()) else { break };
+                let Some(kind) = b.pick(&kinds).map(|k| k.as_ptr()) else {
+                    break;
+                };
                 filters.push(temcNewFilter(dev(&mut b), kind));
             }
             5 => {
                 let (Some(&format), Some(w), Some(h), Some(off), Some(ps), Some(rs), Some(out)) = (
-                    b.pick(&formats), b.u8(), b.u8(), b.u8(), b.u8(), b.u8(), b.u8(),
+                    b.pick(&formats),
+                    b.u8(),
+                    b.u8(),
+                    b.u8(),
+                    b.u8(),
+                    b.u8(),
+                    b.u8(),
                 ) else {
                     break;
                 };
@@ -95,14 +134,33 @@ fuzz_target!(|data: &[u8]| {
                 if off + h * row + px > BUF_BYTES {
                     continue;
                 }
-                let ptr = if out % 2 == 0 { input.as_mut_ptr() } else { output.as_mut_ptr() };
-                temcSetSharedFilterImage(filt(&mut b), name, ptr as *mut c_void, format, w, h, off, ps, rs);
+                let ptr = if out % 2 == 0 {
+                    input.as_mut_ptr()
+                } else {
+                    output.as_mut_ptr()
+                };
+                temcSetSharedFilterImage(
+                    filt(&mut b),
+                    name,
+                    ptr as *mut c_void,
+                    format,
+                    w,
+                    h,
+                    off,
+                    ps,
+                    rs,
+                );
             }
             6 => temcUnsetFilterImage(filt(&mut b), name),
             7 => {
                 let Some(choice) = b.u8() else { break };
                 if choice % 2 == 0 {
-                    temcSetSharedFilterData(filt(&mut b), name, AE.as_ptr() as *mut c_void, AE.len());
+                    temcSetSharedFilterData(
+                        filt(&mut b),
+                        name,
+                        AE.as_ptr() as *mut c_void,
+                        AE.len(),
+                    );
                 } else {
                     let rest = &data[b.1.min(data.len())..];
                     let n = (choice as usize * 7).min(rest.len());
@@ -121,7 +179,11 @@ fuzz_target!(|data: &[u8]| {
             }
             10 => {
                 let f = filt(&mut b);
-                let _ = (temcGetFilterBool(f, name), temcGetFilterInt(f, name), temcGetFilterFloat(f, name));
+                let _ = (
+                    temcGetFilterBool(f, name),
+                    temcGetFilterInt(f, name),
+                    temcGetFilterFloat(f, name),
+                );
             }
             11 => temcCommitFilter(filt(&mut b)),
             12 => temcExecuteFilter(filt(&mut b)),
@@ -131,7 +193,11 @@ fuzz_target!(|data: &[u8]| {
             16 => temcReleaseDevice(dev(&mut b)),
             _ => {
                 let f = filt(&mut b);
-                temcSetFilterProgressMonitorFunction(f, Some(monitor), &mut calls as *mut u32 as *mut c_void);
+                temcSetFilterProgressMonitorFunction(
+                    f,
+                    Some(monitor),
+                    &mut calls as *mut u32 as *mut c_void,
+                );
                 let mut msg = std::ptr::null();
                 let _ = unsafe { temcGetDeviceError(dev(&mut b), &mut msg) };
             }

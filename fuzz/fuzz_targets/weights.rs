@@ -11,11 +11,12 @@ fuzz_target!(|data: &[u8]| {
     if device.commit().is_err() {
         return;
     }
+    // Declared before the filters, which borrow it.
+    let color = [0.5f32; 8 * 8 * 3];
     for kind in ["AE", "TEMC2"] {
         let Ok(mut f) = Filter::new(&device, kind) else {
             continue;
         };
-        let color = [0.5f32; 8 * 8 * 3];
         f.set_weights(data);
         if f.set_input_f32("color", &color, 8, 8).is_err() {
             continue;
