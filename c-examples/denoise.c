@@ -1,8 +1,10 @@
 /* Denoise a PFM image with temc's C API, checking every error.
  *
- *   denoise MODEL.onnx COLOR.pfm [-a ALBEDO.pfm] [-n NORMAL.pfm] -o OUTPUT.pfm
+ *   denoise COLOR.pfm [-a ALBEDO.pfm] [-n NORMAL.pfm] [-q fast|balanced|high] [-m MODEL.onnx]
+ *           -o OUTPUT.pfm
  *
- * MODEL.onnx is a temc model (no trained model is built into the library yet). */
+ * Without -m the library's built-in TEMC-2 model for the quality mode runs; MODEL.onnx is
+ * any temc model file (onnx/baselines/ holds the others). */
 #include <stdio.h>
 #include <string.h>
 
@@ -21,9 +23,9 @@ static int check(TEMCDevice device, const char* what) {
 
 int main(int argc, char** argv) {
   const char *model_path = NULL, *color_path = NULL, *albedo_path = NULL, *normal_path = NULL,
-             *out_path = NULL;
+             *out_path = NULL, *quality = "balanced";
   Image color = {0}, albedo = {0}, normal = {0}, output = {0};
-  void* weights;
+  void* weights = NULL;
   size_t weights_size = 0;
   TEMCDevice device;
   TEMCFilter filter;
@@ -33,16 +35,25 @@ int main(int argc, char** argv) {
     if (!strcmp(argv[i], "-a") && i + 1 < argc) albedo_path = argv[++i];
     else if (!strcmp(argv[i], "-n") && i + 1 < argc) normal_path = argv[++i];
     else if (!strcmp(argv[i], "-o") && i + 1 < argc) out_path = argv[++i];
-    else if (!model_path) model_path = argv[i];
+    else if (!strcmp(argv[i], "-m") && i + 1 < argc) model_path = argv[++i];
+    else if (!strcmp(argv[i], "-q") && i + 1 < argc) quality = argv[++i];
     else if (!color_path) color_path = argv[i];
     else { fprintf(stderr, "unexpected argument %s\n", argv[i]); return 2; }
   }
-  if (!model_path || !color_path || !out_path) {
-    fprintf(stderr, "usage: %s MODEL.onnx COLOR.pfm [-a ALBEDO.pfm] [-n NORMAL.pfm] -o OUT.pfm\n", argv[0]);
+  if (!color_path || !out_path) {
+    fprintf(stderr,
+            "usage: %s COLOR.pfm [-a ALBEDO.pfm] [-n NORMAL.pfm] [-q fast|balanced|high] "
+            "[-m MODEL.onnx] -o OUT.pfm\n", argv[0]);
     return 2;
   }
-  weights = read_file(model_path, &weights_size);
-  if (!weights) { fprintf(stderr, "%s: cannot read\n", model_path); return 1; }
+  if (strcmp(quality, "fast") && strcmp(quality, "balanced") && strcmp(quality, "high")) {
+    fprintf(stderr, "unknown quality %s\n", quality);
+    return 2;
+  }
+  if (model_path) {
+    weights = read_file(model_path, &weights_size);
+    if (!weights) { fprintf(stderr, "%s: cannot read\n", model_path); return 1; }
+  }
   if (pfm_read(color_path, &color) || color.channels != 3) return 1;
   if (albedo_path && pfm_read(albedo_path, &albedo)) return 1;
   if (normal_path && pfm_read(normal_path, &normal)) return 1;
@@ -56,7 +67,10 @@ int main(int argc, char** argv) {
   if (check(device, "filter creation")) goto done_device;
   output = color;
   output.data = (float*)malloc(sizeof(float) * 3 * color.width * color.height);
-  temcSetSharedFilterData(filter, "weights", weights, weights_size);
+  if (weights) temcSetSharedFilterData(filter, "weights", weights, weights_size);
+  temcSetFilterInt(filter, "quality",
+                   !strcmp(quality, "fast") ? TEMC_QUALITY_FAST
+                   : !strcmp(quality, "high") ? TEMC_QUALITY_HIGH : TEMC_QUALITY_BALANCED);
   temcSetSharedFilterImage(filter, "color", color.data, TEMC_FORMAT_FLOAT3, color.width, color.height, 0, 0, 0);
   if (albedo.data)
     temcSetSharedFilterImage(filter, "albedo", albedo.data, TEMC_FORMAT_FLOAT3, albedo.width, albedo.height, 0, 0, 0);

@@ -125,8 +125,13 @@ int main(int argc, char** argv) {
   EXPECT(dev, TEMC_ERROR_NONE, "image set-up");
   temcExecuteFilter(f);
   EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "execute before commit");
-  temcCommitFilter(f);
-  EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "commit without weights");
+  {
+    /* Only TEMC2 has built-in models; a baseline needs "weights". */
+    TEMCFilter g = temcNewFilter(dev, "DEMC");
+    temcCommitFilter(g);
+    EXPECT(dev, TEMC_ERROR_INVALID_OPERATION, "commit without weights");
+    temcReleaseFilter(g);
+  }
   temcSetSharedFilterData(f, "weights", color, sizeof color);
   temcCommitFilter(f);
   EXPECT(dev, TEMC_ERROR_INVALID_ARGUMENT, "garbage weights");

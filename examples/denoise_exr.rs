@@ -1,8 +1,10 @@
 //! Denoise an EXR through temc's Rust API.
 //!
 //! ```sh
-//! cargo run --release --example denoise_exr -- MODEL.onnx noisy.exr denoised.exr
+//! cargo run --release --example denoise_exr -- noisy.exr denoised.exr [MODEL.onnx]
 //! ```
+//!
+//! Without a model file it runs the built-in TEMC-2 (balanced quality).
 //!
 //! `noisy.exr` may be a plain RGB EXR, a `temc-render` EXR or a Blender multi-layer EXR:
 //! albedo, normal and depth layers found in it guide the denoiser. The output is written
@@ -17,15 +19,23 @@ use temc::image::{Format, Layout};
 
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().collect();
-    let [_, model, input, output] = args.as_slice() else {
-        return Err("usage: denoise_exr MODEL.onnx IN.exr OUT.exr".into());
+    let (input, output, model) = match args.as_slice() {
+        [_, i, o] => (i, o, None),
+        [_, i, o, m] => (i, o, Some(m)),
+        _ => return Err("usage: denoise_exr IN.exr OUT.exr [MODEL.onnx]".into()),
     };
-    let weights = std::fs::read(model).map_err(|e| format!("{model}: {e}"))?;
+    let weights = match model {
+        Some(m) => Some(std::fs::read(m).map_err(|e| format!("{m}: {e}"))?),
+        None => None,
+    };
     // The filter type must match the model's architecture (TEMC2, TEMC1, DEMC, AE).
-    let kind = Model::from_bytes(&weights)?
-        .info()
-        .architecture
-        .to_ascii_uppercase();
+    let kind = match &weights {
+        Some(w) => Model::from_bytes(w)?
+            .info()
+            .architecture
+            .to_ascii_uppercase(),
+        None => "TEMC2".to_string(),
+    };
     let image = temc::io::read(Path::new(input))?;
     let (w, h) = (image.width, image.height);
     let color = image.color.ok_or("no colour channels in the input")?;
@@ -40,7 +50,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     let device = Device::new();
     device.commit()?;
     let mut filter = Filter::new(&device, &kind)?;
-    filter.set_weights(&weights);
+    if let Some(w) = &weights {
+        filter.set_weights(w);
+    } // else the built-in model of the quality mode (default balanced)
     filter.set_input_f32("color", &color, w, h)?;
     if let Some(albedo) = &image.albedo {
         filter.set_input_f32("albedo", albedo, w, h)?;

@@ -7,20 +7,18 @@
 //!
 //! The data flow and the contracts between the parts are in docs/contracts.md.
 //!
-//! Quick start (the OIDN-like API of [`filter`]; no trained model is built in yet, so the
-//! weights come from a temc ONNX file):
+//! Quick start (the OIDN-like API of [`filter`]; the trained TEMC-2 models are built in,
+//! one per [`filter::Quality`], and `set_weights` takes any other temc ONNX model):
 //!
 //! ```
-//! use temc::filter::{Device, Filter};
+//! use temc::filter::{Device, Filter, Quality};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models/temc2_w0.0625.onnx");
-//! let weights = std::fs::read(path)?;
 //! let (width, height) = (64, 32);
 //! let noisy = vec![0.25f32; width * height * 3]; // linear HDR RGB
 //! let device = Device::new();
 //! device.commit()?;
 //! let mut filter = Filter::new(&device, "TEMC2")?;
-//! filter.set_weights(&weights);
+//! filter.set_quality(Quality::Balanced); // the default
 //! filter.set_input_f32("color", &noisy, width, height)?;
 //! filter.commit()?;
 //! let (denoised, stats) = filter.execute_to_vec()?;

@@ -100,7 +100,7 @@ fn c_examples_build_and_behave() {
     write_pfm(&dir.join("albedo.pfm"), w, h, &albedo);
     write_pfm(&dir.join("normal.pfm"), w, h, &normal);
     let run = Command::new(bin.join("denoise"))
-        .arg(&model)
+        .args(["-m".as_ref(), model.as_os_str()])
         .arg(dir.join("color.pfm"))
         .args(["-a".as_ref(), dir.join("albedo.pfm").as_os_str()])
         .args(["-n".as_ref(), dir.join("normal.pfm").as_os_str()])
@@ -133,10 +133,32 @@ fn c_examples_build_and_behave() {
         "the C API and the Rust API must agree exactly"
     );
 
+    // The built-in fast model, chosen by quality alone, through both APIs.
+    let run = Command::new(bin.join("denoise"))
+        .arg(dir.join("color.pfm"))
+        .args(["-q", "fast", "-o"])
+        .arg(dir.join("fast.pfm"))
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let mut f = Filter::new(&device, "TEMC2").unwrap();
+    f.set_quality(temc::filter::Quality::Fast);
+    f.set_input_f32("color", &color, w, h).unwrap();
+    f.commit().unwrap();
+    let (fast_rust, _) = f.execute_to_vec().unwrap();
+    assert_eq!(read_pfm(&dir.join("fast.pfm")).2, fast_rust);
+    assert_ne!(
+        fast_rust, from_rust,
+        "the built-in model is not the test model"
+    );
+
     // Bad input files give a non-zero exit and no output.
     std::fs::write(dir.join("bad.pfm"), b"P6\n1 1\n255\n").unwrap();
     let bad = Command::new(bin.join("denoise"))
-        .arg(&model)
         .arg(dir.join("bad.pfm"))
         .args(["-o".as_ref(), dir.join("bad_out.pfm").as_os_str()])
         .output()
@@ -217,8 +239,8 @@ fn installed_tree_links_through_pkg_config() {
     write_pfm(&dir.join("c.pfm"), w, h, &color);
     let mut outs = Vec::new();
     for (bin, name) in [(&shared, "s.pfm"), (&fixed, "t.pfm")] {
+        // The built-in model: the installed library carries its weights.
         let run = Command::new(bin)
-            .arg(root().join(MODEL))
             .arg(dir.join("c.pfm"))
             .arg("-o")
             .arg(dir.join(name))
@@ -265,6 +287,7 @@ fn c_programs_run_clean_under_asan_and_valgrind() {
     let model = root().join(MODEL);
     let denoise_args = |out: &str| -> Vec<std::ffi::OsString> {
         vec![
+            "-m".into(),
             model.clone().into(),
             dir.join("c.pfm").into(),
             "-a".into(),

@@ -104,16 +104,36 @@ fn failures_exit_non_zero_and_leave_no_output() {
         assert!(err.starts_with("temc: "), "{err}");
         assert!(!d.join("out.pfm").exists(), "{args:?} left an output");
     }
-    // No model: a clear message, not a crash.
+    // A model file that is not there: a clear message naming it, no output.
     let out = temc()
-        .args(["denoise", "--color"])
+        .args(["denoise", "--model", "no-such-model.onnx", "--color"])
         .arg(d.join("in.pfm"))
         .arg("-o")
         .arg(d.join("out.pfm"))
         .output()
         .unwrap();
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--model"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no-such-model.onnx"));
+    assert!(!d.join("out.pfm").exists());
+    // No model: the built-in TEMC-2 of the quality mode runs; the modes differ.
+    for (quality, name) in [("balanced", "b.pfm"), ("fast", "f.pfm")] {
+        let out = temc()
+            .args(["denoise", "--quality", quality, "--color"])
+            .arg(d.join("in.pfm"))
+            .arg("-o")
+            .arg(d.join(name))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert_ne!(
+        std::fs::read(d.join("b.pfm")).unwrap(),
+        std::fs::read(d.join("f.pfm")).unwrap()
+    );
     // No temporary files left behind by any of it.
     let leftovers: Vec<_> = std::fs::read_dir(&d)
         .unwrap()
@@ -155,15 +175,20 @@ fn color_only_ignores_aux_layers_in_the_colour_file() {
         .write()
         .to_file(d.join("in.exr"))
         .unwrap();
-    for (flag, expect) in [(None, true), (Some("--color-only"), false)] {
+    // Which aux layers each flag keeps: (albedo, normal, depth).
+    for (flags, expect) in [
+        (&[][..], [true, true, true]),
+        (&["--color-only"][..], [false, false, false]),
+        (&["--aux", "none"][..], [false, false, false]),
+        (&["--aux", "albedo"][..], [true, false, false]),
+        (&["--aux", "full"][..], [true, true, true]),
+    ] {
         let mut cmd = temc();
         cmd.args(["denoise", "--model", MODEL, "--json", "--color"])
             .arg(d.join("in.exr"))
             .arg("-o")
-            .arg(d.join("out.pfm"));
-        if let Some(f) = flag {
-            cmd.arg(f);
-        }
+            .arg(d.join("out.pfm"))
+            .args(flags);
         let out = cmd.output().unwrap();
         assert!(
             out.status.success(),
@@ -171,8 +196,8 @@ fn color_only_ignores_aux_layers_in_the_colour_file() {
             String::from_utf8_lossy(&out.stderr)
         );
         let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        for aux in ["albedo", "normal", "depth"] {
-            assert_eq!(report["aux"][aux], expect, "{flag:?} {aux}");
+        for (aux, want) in ["albedo", "normal", "depth"].iter().zip(expect) {
+            assert_eq!(report["aux"][aux], want, "{flags:?} {aux}");
         }
     }
     // --color-only with an explicit aux file is a contradiction.

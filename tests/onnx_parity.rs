@@ -1,6 +1,8 @@
 //! tract against onnxruntime: every architecture's test model, run by the engine on the
 //! golden inputs, must match the golden outputs that onnxruntime computed (max abs 1e-4).
 //! Models and goldens are made by `python -m temc_train.export --golden tests/data`.
+//! The shipped, trained models in onnx/ are checked the same way against the goldens
+//! `scripts/ship-models` wrote for them in tests/data/golden/shipped/.
 
 mod common;
 
@@ -19,10 +21,32 @@ fn check_arch(arch: &str) {
     let name = format!("{arch}_{TEST_WIDTH}");
     let model = Model::from_path(data_dir().join("models").join(format!("{name}.onnx")))
         .unwrap_or_else(|e| panic!("{name}: {e}"));
-    let info = model.info();
-    assert_eq!(info.architecture, arch);
-    assert!(info.is_untrained(), "test models are untrained by contract");
-    let golden = data_dir().join("golden").join(&name);
+    assert_eq!(model.info().architecture, arch);
+    assert!(
+        model.info().is_untrained(),
+        "test models are untrained by contract"
+    );
+    check_golden(&model, &name, &data_dir().join("golden").join(&name));
+}
+
+/// A shipped model (path under onnx/) against its golden: trained, of the named
+/// architecture, and matching onnxruntime.
+fn check_shipped(file: &str, arch: &str) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("onnx")
+        .join(format!("{file}.onnx"));
+    let model = Model::from_path(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
+    assert_eq!(model.info().architecture, arch);
+    assert!(!model.info().is_untrained(), "{file}: shipped untrained");
+    let name = file.rsplit('/').next().unwrap();
+    check_golden(
+        &model,
+        file,
+        &data_dir().join("golden").join("shipped").join(name),
+    );
+}
+
+fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
     let chroma = common::read_npy(&golden.join("chroma.npy"));
     let luma = common::read_npy(&golden.join("luma.npy"));
     let aux = common::read_npy(&golden.join("aux.npy"));
@@ -53,6 +77,20 @@ fn check_arch(arch: &str) {
         - want.data.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
     assert!(spread.abs() > 1e-3, "{name}: golden output is constant");
     println!("{name}: {h}x{w}, max abs diff vs onnxruntime {max_diff:.2e}");
+}
+
+#[test]
+fn shipped_temc2_models_match_onnxruntime() {
+    for q in ["fast", "balanced", "high"] {
+        check_shipped(&format!("temc2-{q}"), "temc2");
+    }
+}
+
+#[test]
+fn shipped_baselines_match_onnxruntime() {
+    for arch in ["temc1", "demc", "ae"] {
+        check_shipped(&format!("baselines/{arch}"), arch);
+    }
 }
 
 #[test]

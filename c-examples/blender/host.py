@@ -64,15 +64,17 @@ color, w, h = load("noisy")
 albedo, _, _ = load("albedo")
 normal, _, _ = load("normal")
 output = array.array("f", bytes(4 * w * h * 4))
-weights = open(model, "rb").read()
+weights = open(model, "rb").read() if model else None
 
 device = lib.temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT)
 lib.temcCommitDevice(device)
 check(device, "device commit")
 filt = lib.temcNewFilter(device, b"TEMC2")
 check(device, "filter creation")
-buf = ctypes.create_string_buffer(weights, len(weights))
-lib.temcSetSharedFilterData(filt, b"weights", ctypes.cast(buf, vp), len(weights))
+if weights:
+    buf = ctypes.create_string_buffer(weights, len(weights))
+    lib.temcSetSharedFilterData(filt, b"weights", ctypes.cast(buf, vp), len(weights))
+# else the library's built-in TEMC-2 (balanced quality, the default)
 for name, arr in ((b"color", color), (b"albedo", albedo), (b"normal", normal), (b"output", output)):
     # RGB read from RGBA pixels: pixel stride 16 bytes, rows packed.
     lib.temcSetSharedFilterImage(filt, name, address(arr), TEMC_FORMAT_FLOAT3, w, h, 0, 16, 0)

@@ -54,6 +54,7 @@ impl Pixel {
 }
 
 /// A finished image: every layer as planes of f32, row-major.
+#[derive(Clone)]
 pub struct Layers {
     /// Width.
     pub width: usize,

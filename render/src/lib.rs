@@ -16,6 +16,7 @@
 
 pub mod bvh;
 pub mod dataset;
+pub mod demo;
 pub mod film;
 pub mod format;
 pub mod generate;

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand};
-use temc_render::{dataset, format, generate, render_progressive, scene, Settings};
+use temc_render::{dataset, demo, format, generate, render_progressive, scene, Settings};
 
 #[derive(Parser)]
 #[command(
@@ -52,6 +52,28 @@ enum Command {
         /// Output EXR.
         #[arg(short, long)]
         output: PathBuf,
+    },
+    /// The whole job on defaults: render a spectral scene at low spp and a reference,
+    /// denoise with temc's built-in model, write EXR + PNG, print error and time.
+    Demo {
+        /// Named scene.
+        #[arg(long, default_value = "cornell-spiky")]
+        scene: String,
+        /// Image size, WxH.
+        #[arg(long, default_value = "192x192")]
+        size: String,
+        /// Paths per pixel of the noisy render.
+        #[arg(long, default_value_t = 16)]
+        spp: u32,
+        /// Paths per pixel of the reference.
+        #[arg(long, default_value_t = 256)]
+        ref_spp: u32,
+        /// Built-in model: fast, balanced or high.
+        #[arg(long, default_value = "balanced")]
+        quality: String,
+        /// Output folder.
+        #[arg(long, default_value = "demo-out")]
+        out: PathBuf,
     },
     /// List the named scenes.
     Scenes,
@@ -171,6 +193,53 @@ fn run(cli: Cli, cancel: &AtomicBool) -> Result<(), String> {
             for (n, what, _) in scene::NAMED {
                 println!("{n:14} {what}");
             }
+            Ok(())
+        }
+        Command::Demo {
+            scene,
+            size,
+            spp,
+            ref_spp,
+            quality,
+            out,
+        } => {
+            let quality = match quality.as_str() {
+                "fast" => temc::filter::Quality::Fast,
+                "balanced" => temc::filter::Quality::Balanced,
+                "high" => temc::filter::Quality::High,
+                q => return Err(format!("--quality {q:?}: expected fast, balanced or high")),
+            };
+            let o = demo::Options {
+                scene,
+                size: parse_size(&size)?,
+                spp,
+                ref_spp,
+                quality,
+                out,
+            };
+            let t = Instant::now();
+            let r = demo::run(&o, &|line| eprintln!("temc-render demo: {line}"))?;
+            println!(
+                "{} {}x{}: rendered {} spp in {:.2} s, reference {} spp in {:.1} s",
+                o.scene, o.size.0, o.size.1, o.spp, r.render_s, o.ref_spp, r.reference_s
+            );
+            println!(
+                "denoised with the built-in TEMC-2 ({:?}) in {:.3} s on {} threads",
+                o.quality, r.denoise_s, r.threads
+            );
+            println!(
+                "RelMSE against the reference: noisy {:.4e}, denoised {:.4e} ({:.1}x lower)",
+                r.noisy_relmse,
+                r.denoised_relmse,
+                r.noisy_relmse / r.denoised_relmse.max(1e-30)
+            );
+            for f in &r.files {
+                println!("wrote {}", f.display());
+            }
+            eprintln!(
+                "temc-render demo: done in {:.1} s",
+                t.elapsed().as_secs_f64()
+            );
             Ok(())
         }
         Command::Generate { seed } => {

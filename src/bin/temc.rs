@@ -57,10 +57,10 @@ enum Command {
         /// Output file, .pfm or .exr; written atomically.
         #[arg(short, long)]
         output: PathBuf,
-        /// A temc ONNX model file (no trained model is built in yet).
+        /// A temc ONNX model file (default: the built-in TEMC-2 of --quality).
         #[arg(long)]
         model: Option<String>,
-        /// Quality mode (selects among built-in models once they ship).
+        /// Quality mode: which built-in TEMC-2 runs (default balanced); ignored with --model.
         #[arg(long, value_enum)]
         quality: Option<QualityArg>,
         /// Input scale (default: automatic exposure).
@@ -78,9 +78,14 @@ enum Command {
         /// Print timings, tiles and peak memory as JSON on stdout.
         #[arg(long)]
         json: bool,
-        /// Denoise from the colour alone, ignoring aux layers in the colour file.
-        #[arg(long, conflicts_with_all = ["albedo", "normal", "depth"])]
+        /// Denoise from the colour alone, ignoring aux layers in the colour file (the
+        /// same as `--aux none`).
+        #[arg(long, conflicts_with_all = ["albedo", "normal", "depth", "aux"])]
         color_only: bool,
+        /// Which aux layers to use: none, albedo, or full (albedo, normal, depth: those
+        /// present). Layers left out are not read from the colour file.
+        #[arg(long, value_enum, default_value = "full")]
+        aux: AuxArg,
     },
     /// Time the filter on a synthetic image: one warm-up run (which builds the plan), then
     /// `--repeat` timed runs, like OIDN's oidnBenchmark.
@@ -159,11 +164,16 @@ fn run(cli: Cli) -> temc::Result<()> {
             tile_size,
             json,
             color_only,
+            aux: aux_arg,
         } => {
             let t0 = Instant::now();
             let mut bufs = io::read(&color)?;
-            if color_only {
-                (bufs.albedo, bufs.normal, bufs.depth) = (None, None, None);
+            let aux_arg = if color_only { AuxArg::None } else { aux_arg };
+            if aux_arg != AuxArg::Full {
+                (bufs.normal, bufs.depth) = (None, None);
+            }
+            if aux_arg == AuxArg::None {
+                bufs.albedo = None;
             }
             if bufs.color.is_none() {
                 return Err(temc::Error::InvalidArgument(format!(
@@ -200,18 +210,23 @@ fn run(cli: Cli) -> temc::Result<()> {
                 }
                 Ok(())
             };
-            aux(&albedo, |b| b.albedo.or(b.color), "albedo")?;
-            aux(&normal, |b| b.normal.or(b.color), "normal")?;
-            aux(&depth, |b| b.depth, "depth")?;
+            if aux_arg != AuxArg::None {
+                aux(&albedo, |b| b.albedo.or(b.color), "albedo")?;
+            }
+            if aux_arg == AuxArg::Full {
+                aux(&normal, |b| b.normal.or(b.color), "normal")?;
+                aux(&depth, |b| b.depth, "depth")?;
+            }
             let read_s = t0.elapsed().as_secs_f64();
 
-            let Some(model) = model else {
-                return Err(temc::Error::InvalidOperation(
-                    "no trained model is built into this version yet: pass --model FILE.onnx"
-                        .into(),
-                ));
+            // No --model: the built-in TEMC-2 that --quality picks.
+            let (weights, kind) = match &model {
+                Some(m) => {
+                    let (w, k) = read_model(Path::new(m))?;
+                    (Some(w), k)
+                }
+                None => (None, "TEMC2".to_string()),
             };
-            let (weights, kind) = read_model(Path::new(&model))?;
 
             let device = Device::new();
             device.set_num_threads(threads);
@@ -236,9 +251,12 @@ fn run(cli: Cli) -> temc::Result<()> {
             // here leave of it.
             let filter_mb = max_memory_mb.saturating_sub(held >> 20).max(64);
             let t1 = Instant::now();
+            let commit_s;
             let (out, stats) = {
                 let mut f = Filter::new(&device, &kind)?;
-                f.set_weights(&weights);
+                if let Some(w) = &weights {
+                    f.set_weights(w);
+                }
                 f.set_input_f32("color", &color_buf, w, h)?;
                 for (name, buf, format) in [
                     ("albedo", &albedo_h, Format::Half3),
@@ -273,6 +291,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                     });
                 }
                 f.commit()?;
+                commit_s = t1.elapsed().as_secs_f64();
                 let result = f.execute_to_vec()?;
                 if let Some(bar) = bar {
                     bar.finish_and_clear();
@@ -285,13 +304,16 @@ fn run(cli: Cli) -> temc::Result<()> {
             let write_s = t2.elapsed().as_secs_f64();
             if json {
                 let report = serde_json::json!({
-                    "color": color, "output": output, "model": model,
+                    "color": color, "output": output,
+                    "model": model.clone().unwrap_or_else(|| format!("built-in TEMC-2 {}",
+                        match quality { Some(QualityArg::Fast) => "fast", Some(QualityArg::High) => "high", _ => "balanced" })),
                     "width": w, "height": h,
                     "aux": {"albedo": albedo_h.is_some(), "normal": normal_h.is_some(), "depth": depth_h.is_some()},
                     "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
                     "cost_ratio": stats.cost_ratio, "threads": stats.threads,
                     "input_scale": stats.input_scale,
-                    "seconds": {"read": read_s, "denoise": denoise_s, "write": write_s},
+                    "seconds": {"read": read_s, "denoise": denoise_s, "commit": commit_s,
+                                "execute": denoise_s - commit_s, "write": write_s},
                     "estimated_peak_mb": stats.estimated_peak_bytes / 1e6,
                     "peak_rss_mb": peak_rss_mb(),
                 });

@@ -6,16 +6,14 @@
 //! parallel, and writes the output only when every tile has succeeded.
 //!
 //! ```
-//! use temc::filter::{Device, Filter};
-//! # let model = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"),
-//! #     "/tests/data/models/temc2_w0.0625.onnx")).unwrap();
+//! use temc::filter::{Device, Filter, Quality};
 //! let device = Device::new();
 //! device.commit().unwrap();
 //! let (w, h) = (40, 24);
 //! let color = vec![0.5f32; w * h * 3];
 //! let mut output = vec![0f32; w * h * 3];
 //! let mut filter = Filter::new(&device, "TEMC2").unwrap();
-//! filter.set_weights(&model); // no trained model ships yet: bring your own ONNX file
+//! filter.set_quality(Quality::Fast); // the built-in TEMC-2 models; or set_weights(onnx)
 //! filter.set_input_f32("color", &color, w, h).unwrap();
 //! filter.set_output_f32(&mut output, w, h).unwrap();
 //! filter.commit().unwrap();
@@ -24,7 +22,10 @@
 //! assert!(output.iter().all(|v| v.is_finite()));
 //! ```
 
+mod builtin;
 mod execute;
+
+pub use builtin::builtin_model;
 
 use std::marker::PhantomData;
 use std::sync::{Arc, Mutex};
@@ -382,7 +383,8 @@ impl<'a> Filter<'a> {
         self.changed();
     }
 
-    /// Quality mode; chooses among built-in models once they ship.
+    /// Quality mode: which built-in TEMC-2 model runs (see [`builtin_model`]); ignored
+    /// when user weights are set.
     pub fn set_quality(&mut self, q: Quality) {
         self.quality = q;
         self.changed();
@@ -523,9 +525,14 @@ impl<'a> Filter<'a> {
     /// and checks it matches the filter type. Required after any change, before execute.
     pub fn commit(&mut self) -> Result<(), Error> {
         self.device.pool()?;
-        let Some(weights) = self.weights.clone() else {
+        let Some(weights) = self
+            .weights
+            .clone()
+            .or_else(|| builtin::shared(self.kind, self.quality))
+        else {
             return Err(Error::InvalidOperation(format!(
-                "no built-in weights for {} ship in this build yet; set \"weights\" to a temc ONNX model",
+                "no built-in weights for {}: the baselines ship as files in onnx/baselines/; \
+                 set \"weights\" to a temc ONNX model",
                 self.kind
             )));
         };

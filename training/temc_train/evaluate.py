@@ -99,30 +99,31 @@ def read_pfm(path):
     return np.flipud(data.reshape(h, w, ch)).astype(np.float32)
 
 
-def temc_denoise(binary, model, exr, threads=2, aux=True):
-    """Runs `temc denoise` on a temc-render EXR; returns (image, denoise seconds)."""
+def temc_denoise(binary, model, exr, threads=2, aux="full"):
+    """Runs `temc denoise` on a temc-render EXR with the aux layers `aux` (none, albedo,
+    full); returns (image, seconds to execute). The model load (commit) is left out, as
+    pyoidn's warm filter leaves it out for OIDN."""
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out.pfm")
         cmd = [binary, "denoise", "--model", model, "--color", exr, "-o", out, "--json",
-               "--threads", str(threads)]
-        if not aux:
-            cmd += ["--color-only"]
+               "--threads", str(threads), "--aux", aux]
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
             raise RuntimeError(f"{' '.join(cmd)}: {r.stderr.strip()}")
         rep = json.loads(r.stdout.strip().splitlines()[-1])
-        return read_pfm(out), rep["seconds"]["denoise"]
+        return read_pfm(out), rep["seconds"]["execute"]
 
 
-def oidn_denoise(layers, quality="high", aux=True):
-    """OIDN 2.5 (pyoidn) in HDR mode with albedo and normal; returns (image, seconds).
+def oidn_denoise(layers, quality="high", aux="full"):
+    """OIDN 2.5 (pyoidn) in HDR mode with the aux buffers `aux` (none, albedo, full: albedo
+    and normal); returns (image, seconds).
     The first call per quality warms pyoidn's cached filter up and is not timed."""
     import pyoidn
 
     args = dict(hdr=True, quality=quality)
     c = np.ascontiguousarray(layers["color"], np.float32)
-    a = np.ascontiguousarray(layers["albedo"], np.float32) if aux else None
-    n = np.ascontiguousarray(layers["normal"], np.float32) if aux else None
+    a = np.ascontiguousarray(layers["albedo"], np.float32) if aux != "none" else None
+    n = np.ascontiguousarray(layers["normal"], np.float32) if aux == "full" else None
     key = (quality, aux, c.shape)
     if key not in _warm:
         pyoidn.denoise(c, a, n, **args)

@@ -57,3 +57,20 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     ms_ssim = lum * cs.prod(dim=1)
     l1 = _blur((x - y).abs(), k[-1:])[:, 0]  # G_sigmaM-weighted L1
     return (alpha * (1 - ms_ssim) + (1 - alpha) * l1).mean()
+
+
+def chroma_plane(hsv: torch.Tensor) -> torch.Tensor:
+    """[N, 3, H, W] HSV in [0,1] -> (0.5 + 0.5 S cos 2piH, 0.5 + 0.5 S sin 2piH, V), also in
+    [0,1]. Hue is an angle: plain L1 on H calls the reds on either side of the wrap (H near 0
+    and near 1) opposites, and a network trained that way answers red with the hue between
+    them (yellow, green). On the chroma plane they are neighbours, and the hue of a grey
+    pixel, which is undefined, weighs nothing."""
+    h, s, v = hsv[:, 0:1], hsv[:, 1:2], hsv[:, 2:3]
+    angle = 2 * torch.pi * h
+    return torch.cat([0.5 + 0.5 * s * torch.cos(angle), 0.5 + 0.5 * s * torch.sin(angle), v], 1)
+
+
+def training_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """What temc trains on: the paper's mix loss on the chroma plane of the network's HSV
+    output (see chroma_plane), so hue wraps around."""
+    return mix_loss(chroma_plane(pred), chroma_plane(target))

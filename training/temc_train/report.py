@@ -74,6 +74,56 @@ def oidn_timing(size, threads, quality, repeat=2):
     return float(np.median(times))
 
 
+def claims(logs):
+    """Sentences on the paper's training claims, from the validation curves."""
+    out = []
+    t2, t1 = logs.get("temc2-w0.125"), logs.get("temc1-w0.125")
+    if t2 and t1:
+        target = t1[-1][1]
+        reach = next((t for t, v in t2 if v <= target), None)
+        if reach is None:
+            out.append(f"TEMC-2 trains faster than TEMC-1: **does not hold here**. TEMC-2 ended at "
+                       f"validation loss {t2[-1][1]:.4f}, TEMC-1 at {target:.4f}.")
+        else:
+            out.append(f"TEMC-2 trains faster than TEMC-1: {'**holds**' if reach < t1[-1][0] else '**does not hold**'}"
+                       f" here. TEMC-2 reached TEMC-1's final validation loss ({target:.4f}, after "
+                       f"{t1[-1][0] / 60:.0f} CPU minutes) after {reach / 60:.1f} CPU minutes.")
+    d = logs.get("demc-w0.125")
+    if t2 and d:
+        better = t2[-1][1] < d[-1][1]
+        out.append(f"TEMC-2 beats DEMC (validation loss at the end of the budget): "
+                   f"{'**holds**' if better else '**does not hold**'} here: {t2[-1][1]:.4f} against "
+                   f"{d[-1][1]:.4f}. The test-scene errors are in the tables above.")
+    return out or ["(the runs needed for this comparison are missing)"]
+
+
+def verdict(mean, spps, labels, rows):
+    """Sentences on the shipped TEMC-2 models against the noisy input, the baselines and OIDN.
+    Means over scenes are dominated by the scene with the largest error (a firefly), so the
+    per-scene count and the median ratio come first."""
+    out = []
+    temc2 = [l for l in labels if l.startswith("TEMC-2")]
+    base = [l for l in labels if not l.startswith("TEMC-2")]
+    err = {(r["denoiser"], r["scene"], r["spp"]): r["RelMSE"] for r in rows}
+    cases = sorted({(r["scene"], r["spp"]) for r in rows})
+    for l in labels + ["OIDN high"]:
+        wins = sum(err[(l, c, s)] < err[("noisy", c, s)] for c, s in cases)
+        ratio = float(np.median([err[("noisy", c, s)] / max(err[(l, c, s)], 1e-30) for c, s in cases]))
+        out.append(f"{l}: lower RelMSE than the noisy input in {wins} of {len(cases)} (scene, spp) "
+                   f"cases; median noisy/denoised RelMSE ratio {ratio:.3g}.")
+    for l in temc2:
+        ratios = [mean("noisy", s, "RelMSE") / mean(l, s, "RelMSE") for s in spps]
+        beats = [b for b in base if all(mean(l, s, "RelMSE") < mean(b, s, "RelMSE") for s in spps)]
+        loses = [b for b in base if b not in beats]
+        oidn = [mean(l, s, "RelMSE") / mean("OIDN high", s, "RelMSE") for s in spps]
+        out.append(f"{l}, means over the scenes: the noisy input's mean RelMSE is {min(ratios):.3g}x to "
+                   f"{max(ratios):.3g}x its mean RelMSE (over {', '.join(f'{s}' for s in spps)} spp); lower mean than "
+                   f"{', '.join(beats) if beats else 'no baseline'} at every spp"
+                   + (f", not always lower than {', '.join(loses)}" if loses else "")
+                   + f"; its RelMSE is {min(oidn):.3g}x to {max(oidn):.3g}x OIDN high's.")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True)
@@ -83,6 +133,8 @@ def main(argv=None):
     ap.add_argument("--out", required=True, help="the Markdown report")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--timing-size", default="1920x1080")
+    ap.add_argument("--aux-model", help="the model whose aux modes are compared (default: the "
+                    "first --model named temc2-balanced.onnx, else the first)")
     a = ap.parse_args(argv)
 
     import matplotlib
@@ -100,6 +152,10 @@ def main(argv=None):
         raise SystemExit("no finished test scenes in the data set yet")
     models = [(model_label(a.temc, m)[0], m) for m in a.model]
     denoisers = ["noisy"] + [m[0] for m in models] + ["OIDN high", "OIDN fast"]
+    aux_model = a.aux_model or next((m for m in a.model if m.endswith("temc2-balanced.onnx")),
+                                    a.model[0] if a.model else None)
+    aux_label = model_label(a.temc, aux_model)[0] if aux_model else None
+    aux_rows = []
 
     rows = []
     strips = {}
@@ -121,6 +177,15 @@ def main(argv=None):
                              "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref)})
             if rec["name"] in HARD and spp == 16:
                 strips[rec["name"]] = (outs, ref)
+            # The three input sets (colour; + albedo; + normal and depth) at 16 spp: one
+            # temc model trained with aux dropout against OIDN's separate weights.
+            if spp == 16 and aux_model:
+                for mode in ("full", "albedo", "none"):
+                    for name, run in ((aux_label, lambda: ev.temc_denoise(a.temc, aux_model, path, a.threads, mode)),
+                                      ("OIDN high", lambda: ev.oidn_denoise(layers, "high", mode))):
+                        img, secs = (outs[name] if mode == "full" else run())
+                        aux_rows.append({"scene": rec["name"], "denoiser": name, "aux": mode,
+                                         "denoise_s": secs, **ev.all_metrics(img, ref)})
         print(f"evaluated {rec['name']}", flush=True)
 
     with open(os.path.join(img_dir, "measurements.csv"), "w", newline="") as f:
@@ -202,6 +267,7 @@ def main(argv=None):
 
     # Training curves.
     curves = []
+    logs = {}
     if a.runs:
         fig, ax = plt.subplots(figsize=(7, 4))
         for log in sorted(glob.glob(os.path.join(a.runs, "*", "log.csv"))):
@@ -212,7 +278,8 @@ def main(argv=None):
             name = os.path.basename(os.path.dirname(log))
             ax.plot([float(r["train_seconds"]) / 60 for r in rs], [float(r["val_loss"]) for r in rs], label=name)
             curves.append((name, rs[-1]))
-        ax.set_xlabel("training minutes (2 CPU threads)")
+            logs[name] = [(float(r["train_seconds"]), float(r["val_loss"])) for r in rs]
+        ax.set_xlabel("CPU minutes in training steps (1 thread)")
         ax.set_ylabel("validation loss (L1 + MS-SSIM mix)")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
@@ -220,11 +287,17 @@ def main(argv=None):
         fig.savefig(os.path.join(img_dir, "training.png"), dpi=110)
         plt.close(fig)
 
+    import platform
+    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
+               platform.processor())
     md = ["# Accuracy against time", "",
           "Regenerate with `scripts/accuracy-report` (one command; every number below comes from that run).",
           f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}), {manifest['options']['size']}² pixels, "
           f"reference {manifest['options']['ref_spp']} spp. Denoising on {a.threads} threads of this machine; "
-          "OIDN 2.5 through pyoidn (HDR, albedo + normal) measured in the same run.", ""]
+          "OIDN 2.5 through pyoidn (HDR, albedo + normal) measured in the same run. "
+          f"Machine: {cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}. Denoise seconds "
+          "are execution only (model loading excluded, for temc and OIDN alike); render seconds come "
+          "from the data set's progressive renders (2 threads), scaled by spp.", ""]
     for s in spps:
         md += [f"## {s} spp", "", "| denoiser | " + " | ".join(metrics) + " | denoise s |",
                "|---|" + "---:|" * (len(metrics) + 1)]
@@ -244,6 +317,20 @@ def main(argv=None):
     md += ["", f"## Denoising time at {a.timing_size}", "",
            "| denoiser | threads | median seconds |", "|---|---:|---:|"]
     md += [f"| {n} | {t} | {s:.3f} |" for n, t, s in timing]
+    if aux_rows:
+        md += ["", "## Inputs: colour, colour + albedo, colour + albedo + normal (16 spp)", "",
+               f"{aux_label} is one model trained with random aux dropout (20 % colour only, some "
+               "albedo only); OIDN ships separate weights per input set. Means over the test scenes.", "",
+               "| denoiser | aux | " + " | ".join(metrics) + " |", "|---|---|" + "---:|" * len(metrics)]
+        for name in (aux_label, "OIDN high"):
+            for mode in ("full", "albedo", "none"):
+                sel = [r for r in aux_rows if r["denoiser"] == name and r["aux"] == mode]
+                md.append(f"| {name} | {mode} | " + " | ".join(
+                    f"{np.mean([r[k] for r in sel]):.4g}" for k in metrics) + " |")
+        with open(os.path.join(img_dir, "aux-modes.csv"), "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(aux_rows[0]))
+            w.writeheader()
+            w.writerows(aux_rows)
     if strip_files:
         md += ["", "## Hard cases at 16 spp", "", "Left to right: " + ", ".join(strip_names) + ".", ""]
         md += [f"**{s}**\n\n![{s}](img/accuracy/{fn})\n" for s, fn in strip_files]
@@ -252,6 +339,20 @@ def main(argv=None):
                "| run | steps | training minutes | final validation loss |", "|---|---:|---:|---:|"]
         md += [f"| {n} | {r['step']} | {float(r['train_seconds']) / 60:.0f} | {float(r['val_loss']):.4f} |"
                for n, r in curves]
+        md += ["", "The paper's claims, checked on these runs (same width 0.125, same budget):", ""]
+        md += [f"- {line}" for line in claims(logs)]
+    at = md.index(f"## {spps[0]} spp")
+    block = ["## Verdict", ""] + [f"- {line}" for line in verdict(mean, spps, [m[0] for m in models], rows)] + [""]
+    if 16 in spps:
+        scenes = [r["name"] for r in tests]
+
+        def err(n, c):
+            return next(r["RelMSE"] for r in rows if r["denoiser"] == n and r["scene"] == c and r["spp"] == 16)
+
+        block += ["## RelMSE per scene at 16 spp", "",
+                  "| denoiser | " + " | ".join(scenes) + " |", "|---|" + "---:|" * len(scenes)]
+        block += [f"| {n} | " + " | ".join(f"{err(n, c):.3g}" for c in scenes) + " |" for n in denoisers] + [""]
+    md[at:at] = block
     with open(a.out, "w") as f:
         f.write("\n".join(md) + "\n")
     print(f"wrote {a.out}")

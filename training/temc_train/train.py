@@ -15,7 +15,8 @@ validation loss. RUN/model.pt is the final checkpoint in the form `export.py --c
 reads.
 
 Recipe (the paper's where it fits): Adam, learning rate 1e-4, random 128x128 crops with
-flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`), aux dropout (`data.py`).
+flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`) taken on the chroma plane so
+that hue wraps around (`loss.training_loss`), aux dropout (`data.py`).
 """
 
 import argparse
@@ -27,7 +28,7 @@ import numpy as np
 import torch
 
 from . import data
-from .loss import mix_loss
+from .loss import training_loss
 from .models import ARCHS, build, count_params
 
 
@@ -44,7 +45,7 @@ def validate(model, val, batch=8) -> float:
         for i in range(0, len(val[0]), batch):
             xs = [torch.from_numpy(v[i:i + batch]) for v in val]
             pred = model(*xs[:3])
-            total += float(mix_loss(pred, xs[3])) * len(xs[0])
+            total += float(training_loss(pred, xs[3])) * len(xs[0])
             n += len(xs[0])
     model.train()
     return total / max(n, 1)
@@ -95,7 +96,7 @@ def train(a) -> dict:
     while state["train_s"] < budget and state["step"] < a.max_steps:
         t0 = time.process_time()
         xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
-        loss = mix_loss(model(*xs[:3]), xs[3])
+        loss = training_loss(model(*xs[:3]), xs[3])
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()

@@ -56,3 +56,21 @@ def test_works_on_tiny_and_odd_sizes():
         x = image(max(h, 8), max(w, 8))[..., :h, :w]
         v = mix_loss(noisy(x, 0.1), x)
         assert torch.isfinite(v) and v >= 0
+
+
+def test_training_loss_wraps_hue_and_ignores_the_hue_of_grey():
+    from temc_train.loss import training_loss
+
+    def img(h, s, v=0.5):
+        return torch.stack([torch.full((16, 16), float(x)) for x in (h, s, v)])[None]
+
+    # Reds on either side of the wrap are neighbours; red against cyan is far.
+    near = training_loss(img(0.99, 0.9), img(0.01, 0.9)).item()
+    far = training_loss(img(0.5, 0.9), img(0.01, 0.9)).item()
+    assert near < 0.2 * far, (near, far)
+    # Grey (S = 0): any hue is the same colour.
+    assert training_loss(img(0.3, 0.0), img(0.8, 0.0)).item() < 1e-6
+    # Gradients reach the hue.
+    p = img(0.2, 0.9).requires_grad_()
+    training_loss(p, img(0.01, 0.9)).backward()
+    assert p.grad[:, 0].abs().sum() > 0

@@ -1,0 +1,282 @@
+//! `temc-render demo`: the whole job on embedded defaults. Renders a named scene at low
+//! spp and a reference at high spp (another seed, so their noise is independent),
+//! denoises the low-spp render with temc's built-in model, and reports error and time.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use temc::filter::{Device, Filter, Quality};
+
+use crate::film::Layers;
+use crate::{render_progressive, scene, Settings};
+
+/// What the demo renders and how it denoises.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Named scene.
+    pub scene: String,
+    /// Image width and height.
+    pub size: (usize, usize),
+    /// Samples per pixel of the noisy render.
+    pub spp: u32,
+    /// Samples per pixel of the reference.
+    pub ref_spp: u32,
+    /// Built-in model to run.
+    pub quality: Quality,
+    /// Output folder.
+    pub out: PathBuf,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            scene: "cornell-spiky".into(),
+            size: (192, 192),
+            spp: 16,
+            ref_spp: 256,
+            quality: Quality::Balanced,
+            out: "demo-out".into(),
+        }
+    }
+}
+
+/// The demo's measurements.
+#[derive(Clone, Debug)]
+pub struct Report {
+    /// Seconds to render the noisy image.
+    pub render_s: f64,
+    /// Seconds to render the reference.
+    pub reference_s: f64,
+    /// Seconds to denoise (commit included: the model is loaded once per process).
+    pub denoise_s: f64,
+    /// RelMSE (eps 0.01) of the noisy render against the reference.
+    pub noisy_relmse: f64,
+    /// RelMSE of the denoised image against the reference.
+    pub denoised_relmse: f64,
+    /// Denoising threads.
+    pub threads: usize,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Relative MSE with eps 0.01, the data set's error measure (training/temc_train/evaluate.py).
+pub fn relmse(x: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
+    let sum: f64 = x
+        .iter()
+        .zip(reference)
+        .flat_map(|(a, r)| (0..3).map(move |c| (a[c] as f64, r[c] as f64)))
+        .map(|(a, r)| (a - r).powi(2) / (r * r + 0.01))
+        .sum();
+    sum / (3 * x.len().max(1)) as f64
+}
+
+/// Runs the demo; `progress` gets a line per stage.
+pub fn run(o: &Options, progress: &dyn Fn(&str)) -> Result<Report, String> {
+    let sc = scene::named(&o.scene).ok_or_else(|| {
+        format!(
+            "unknown scene {:?} (known: {})",
+            o.scene,
+            scene::names().join(", ")
+        )
+    })?;
+    if o.spp == 0 || o.ref_spp == 0 {
+        return Err("sample counts must be at least 1".into());
+    }
+    let (w, h) = o.size;
+    let render = |spp: u32, seed: u64| -> Result<(Layers, f64), String> {
+        let s = Settings {
+            width: w,
+            height: h,
+            spp,
+            seed,
+            ..Settings::default()
+        };
+        let t = Instant::now();
+        let mut layers = render_progressive(&sc, &s, &[spp], &|_| {}, &AtomicBool::new(false))
+            .map_err(|_| "cancelled".to_string())?;
+        Ok((
+            layers.pop().expect("one checkpoint"),
+            t.elapsed().as_secs_f64(),
+        ))
+    };
+    progress(&format!("rendering {} {w}x{h} at {} spp", o.scene, o.spp));
+    let (noisy, render_s) = render(o.spp, 1)?;
+    progress(&format!("rendering the reference at {} spp", o.ref_spp));
+    let (reference, reference_s) = render(o.ref_spp, 2)?;
+
+    progress(&format!(
+        "denoising with the built-in {:?} model",
+        o.quality
+    ));
+    let (denoised, denoise_s, threads) =
+        denoise(&noisy, o.quality).map_err(|e| format!("denoising: {e}"))?;
+
+    std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
+    let mut files = Vec::new();
+    let mut clean = noisy.clone();
+    clean.color = denoised;
+    for (name, layers) in [
+        ("noisy.exr", &noisy),
+        ("denoised.exr", &clean),
+        ("reference.exr", &reference),
+    ] {
+        let p = o.out.join(name);
+        layers.write_exr(&p)?;
+        files.push(p);
+    }
+    let png = o.out.join("demo.png");
+    write_strip(
+        &png,
+        w,
+        h,
+        &[&noisy.color, &clean.color, &reference.color],
+        exposure(&reference.color),
+    )?;
+    files.push(png);
+    Ok(Report {
+        render_s,
+        reference_s,
+        denoise_s,
+        noisy_relmse: relmse(&noisy.color, &reference.color),
+        denoised_relmse: relmse(&clean.color, &reference.color),
+        threads,
+        files,
+    })
+}
+
+/// Denoises colour with albedo, normal and depth through temc's Rust API.
+fn denoise(l: &Layers, quality: Quality) -> temc::Result<(Vec<[f32; 3]>, f64, usize)> {
+    let (w, h) = (l.width, l.height);
+    let flat = |v: &[[f32; 3]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    let (color, albedo, normal) = (flat(&l.color), flat(&l.albedo), flat(&l.normal));
+    let device = Device::new();
+    device.commit()?;
+    let t = Instant::now();
+    let mut f = Filter::new(&device, "TEMC2")?;
+    f.set_quality(quality);
+    f.set_input_f32("color", &color, w, h)?;
+    f.set_input_f32("albedo", &albedo, w, h)?;
+    f.set_input_f32("normal", &normal, w, h)?;
+    f.set_input_f32("depth", &l.depth, w, h)?;
+    f.commit()?;
+    let (out, stats) = f.execute_to_vec()?;
+    let secs = t.elapsed().as_secs_f64();
+    Ok((
+        out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
+        secs,
+        stats.threads,
+    ))
+}
+
+/// A scale that puts the image's log-average luminance at mid grey.
+fn exposure(rgb: &[[f32; 3]]) -> f32 {
+    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    let mean_log = rgb
+        .iter()
+        .map(|p| (lum(p).max(0.0) as f64 + 1e-4).ln())
+        .sum::<f64>()
+        / rgb.len().max(1) as f64;
+    (0.18 / mean_log.exp()) as f32
+}
+
+/// Writes the images side by side as an 8-bit sRGB PNG (Reinhard tone mapping).
+fn write_strip(
+    path: &Path,
+    w: usize,
+    h: usize,
+    images: &[&Vec<[f32; 3]>],
+    scale: f32,
+) -> Result<(), String> {
+    let srgb = |v: f32| {
+        let x = (v * scale).max(0.0);
+        let x = if x.is_finite() { x / (1.0 + x) } else { 1.0 };
+        let e = if x <= 0.003_130_8 {
+            12.92 * x
+        } else {
+            1.055 * x.powf(1.0 / 2.4) - 0.055
+        };
+        (e.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    };
+    let n = images.len();
+    let mut px = Vec::with_capacity(w * n * h * 3);
+    for y in 0..h {
+        for img in images {
+            for p in &img[y * w..(y + 1) * w] {
+                px.extend(p.iter().map(|&v| srgb(v)));
+            }
+        }
+    }
+    let tmp = path.with_extension("png.tmp");
+    let write = || -> Result<(), Box<dyn std::error::Error>> {
+        let file = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        let mut enc = png::Encoder::new(file, (w * n) as u32, h as u32);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        enc.write_header()?.write_image_data(&px)?;
+        Ok(())
+    };
+    write()
+        .and_then(|()| Ok(std::fs::rename(&tmp, path)?))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            format!("{}: {e}", path.display())
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relmse_is_zero_on_equal_images_and_relative() {
+        let r = vec![[1.0f32, 2.0, 0.0]; 4];
+        assert_eq!(relmse(&r, &r), 0.0);
+        let x = vec![[1.1f32, 2.2, 0.1]; 4];
+        let want = (0.01 / 1.01 + 0.04 / 4.01 + 0.01 / 0.01) / 3.0;
+        assert!((relmse(&x, &r) - want).abs() < 1e-6);
+    }
+
+    fn tiny(name: &str) -> (Options, PathBuf) {
+        let out = std::env::temp_dir().join(format!("temc-demo-{name}-{}", std::process::id()));
+        let o = Options {
+            size: (64, 64),
+            spp: 8,
+            ref_spp: 128,
+            out: out.clone(),
+            ..Options::default()
+        };
+        (o, out)
+    }
+
+    /// A tiny demo end to end: every file is written and the errors are finite.
+    #[test]
+    fn demo_runs_and_writes_its_files() {
+        let (o, out) = tiny("files");
+        let r = run(&o, &|_| {}).unwrap();
+        assert_eq!(r.files.len(), 4);
+        for f in &r.files {
+            assert!(f.metadata().unwrap().len() > 0, "{}", f.display());
+        }
+        assert!(r.noisy_relmse.is_finite() && r.denoised_relmse.is_finite());
+        std::fs::remove_dir_all(&out).ok();
+    }
+
+    /// The built-in model lowers the demo's error. Fails with the models shipped on
+    /// 2026-12-01 (9 CPU minutes of training; they shift saturated colours): see
+    /// docs/accuracy-vs-time.md. Run it with `--ignored` after shipping new models.
+    #[test]
+    #[ignore = "the shipped models do not yet beat the noisy input here (issue 5)"]
+    fn demo_lowers_the_error() {
+        let (o, out) = tiny("quality");
+        let r = run(&o, &|_| {}).unwrap();
+        assert!(
+            r.denoised_relmse < r.noisy_relmse,
+            "denoised {} vs noisy {}",
+            r.denoised_relmse,
+            r.noisy_relmse
+        );
+        std::fs::remove_dir_all(&out).ok();
+    }
+}

@@ -1,0 +1,89 @@
+//! The models built into the library: TEMC-2 at three widths, one per quality mode,
+//! embedded from onnx/ at compile time (their model cards sit beside them there). The
+//! baselines (TEMC-1, DEMC, AE) ship as files in onnx/baselines/ and need "weights".
+
+use std::sync::{Arc, OnceLock};
+
+use super::Quality;
+
+const FAST: &[u8] = include_bytes!("../../onnx/temc2-fast.onnx");
+const BALANCED: &[u8] = include_bytes!("../../onnx/temc2-balanced.onnx");
+const HIGH: &[u8] = include_bytes!("../../onnx/temc2-high.onnx");
+
+/// The built-in ONNX model for filter type `kind` at `quality`, if this build has one
+/// (only "TEMC2" does). [`Quality::Default`] is [`Quality::Balanced`].
+///
+/// ```
+/// use temc::filter::{builtin_model, Quality};
+/// let onnx = builtin_model("TEMC2", Quality::Default).unwrap();
+/// let info = temc::engine::Model::from_bytes(onnx).unwrap().info().clone();
+/// assert_eq!(info.architecture, "temc2");
+/// assert!(builtin_model("DEMC", Quality::High).is_none());
+/// ```
+pub fn builtin_model(kind: &str, quality: Quality) -> Option<&'static [u8]> {
+    (kind == "TEMC2").then_some(match quality {
+        Quality::Fast => FAST,
+        Quality::Default | Quality::Balanced => BALANCED,
+        Quality::High => HIGH,
+    })
+}
+
+/// [`builtin_model`] as shared bytes, one allocation per model for the whole process, so
+/// that filters recommitted with the same quality reuse their loaded model.
+pub(super) fn shared(kind: &str, quality: Quality) -> Option<Arc<[u8]>> {
+    static CACHE: [OnceLock<Arc<[u8]>>; 3] = [const { OnceLock::new() }; 3];
+    let bytes = builtin_model(kind, quality)?;
+    let slot = match quality {
+        Quality::Fast => 0,
+        Quality::Default | Quality::Balanced => 1,
+        Quality::High => 2,
+    };
+    Some(CACHE[slot].get_or_init(|| Arc::from(bytes)).clone())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::Model;
+
+    /// Each quality mode is a trained TEMC-2, and a faster mode is a narrower network.
+    #[test]
+    fn quality_modes_are_trained_temc2_of_rising_width() {
+        let width = |q| {
+            let info = Model::from_bytes(builtin_model("TEMC2", q).unwrap())
+                .unwrap()
+                .info()
+                .clone();
+            assert_eq!(info.architecture, "temc2");
+            assert!(
+                !info.is_untrained(),
+                "{q:?}: the built-in model is untrained"
+            );
+            info.width
+        };
+        let (fast, balanced, high) = (
+            width(Quality::Fast),
+            width(Quality::Balanced),
+            width(Quality::High),
+        );
+        assert!(
+            fast < balanced && balanced < high,
+            "{fast} {balanced} {high}"
+        );
+        assert_eq!(
+            builtin_model("TEMC2", Quality::Default),
+            builtin_model("TEMC2", Quality::Balanced)
+        );
+        for kind in ["TEMC1", "DEMC", "AE"] {
+            assert!(builtin_model(kind, Quality::Balanced).is_none());
+        }
+    }
+
+    #[test]
+    fn shared_bytes_are_allocated_once() {
+        let a = shared("TEMC2", Quality::High).unwrap();
+        let b = shared("TEMC2", Quality::High).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert!(shared("AE", Quality::High).is_none());
+    }
+}
