@@ -227,11 +227,16 @@ fn run(cli: Cli, cancel: &AtomicBool) -> Result<(), String> {
                 "denoised with the built-in TEMC-2 ({:?}) in {:.3} s on {} threads",
                 o.quality, r.denoise_s, r.threads
             );
+            let ratio = r.noisy_relmse / r.denoised_relmse.max(1e-30);
             println!(
-                "RelMSE against the reference: noisy {:.4e}, denoised {:.4e} ({:.1}x lower)",
+                "RelMSE against the reference: noisy {:.4e}, denoised {:.4e} ({})",
                 r.noisy_relmse,
                 r.denoised_relmse,
-                r.noisy_relmse / r.denoised_relmse.max(1e-30)
+                if ratio >= 1.0 {
+                    format!("{ratio:.1}x lower")
+                } else {
+                    format!("{:.1}x higher: the denoiser made it worse", 1.0 / ratio)
+                }
             );
             for f in &r.files {
                 println!("wrote {}", f.display());
