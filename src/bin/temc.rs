@@ -38,6 +38,16 @@ enum QualityArg {
     High,
 }
 
+impl QualityArg {
+    fn quality(self) -> Quality {
+        match self {
+            QualityArg::Fast => Quality::Fast,
+            QualityArg::Balanced => Quality::Balanced,
+            QualityArg::High => Quality::High,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Denoise an image (PFM or EXR; multi-layer EXR may carry the aux buffers too).
@@ -60,9 +70,9 @@ enum Command {
         /// A temc ONNX model file (default: the built-in TEMC-2 of --quality).
         #[arg(long)]
         model: Option<String>,
-        /// Quality mode: which built-in TEMC-2 runs (default balanced); ignored with --model.
-        #[arg(long, value_enum)]
-        quality: Option<QualityArg>,
+        /// Quality mode: which built-in TEMC-2 runs; ignored with --model.
+        #[arg(long, value_enum, default_value = "balanced")]
+        quality: QualityArg,
         /// Input scale (default: automatic exposure).
         #[arg(long)]
         input_scale: Option<f32>,
@@ -271,13 +281,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                         f.set_input(name, bytes, Layout::packed(format, w, h))?;
                     }
                 }
-                if let Some(q) = quality {
-                    f.set_quality(match q {
-                        QualityArg::Fast => Quality::Fast,
-                        QualityArg::Balanced => Quality::Balanced,
-                        QualityArg::High => Quality::High,
-                    });
-                }
+                f.set_quality(quality.quality());
                 if let Some(s) = input_scale {
                     f.set_input_scale(s)?;
                 }
@@ -306,7 +310,7 @@ fn run(cli: Cli) -> temc::Result<()> {
                 let report = serde_json::json!({
                     "color": color, "output": output,
                     "model": model.clone().unwrap_or_else(|| format!("built-in TEMC-2 {}",
-                        match quality { Some(QualityArg::Fast) => "fast", Some(QualityArg::High) => "high", _ => "balanced" })),
+                        quality.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()))),
                     "width": w, "height": h,
                     "aux": {"albedo": albedo_h.is_some(), "normal": normal_h.is_some(), "depth": depth_h.is_some()},
                     "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
