@@ -13,6 +13,8 @@ Computed per channel on [0,1] images (the network's PQ-HSV), then averaged.
 import torch
 import torch.nn.functional as F
 
+from .models import hsv_to_rgb
+
 SIGMAS = (0.5, 1.0, 2.0, 4.0, 8.0)
 ALPHA = 0.84
 C1 = 0.01 ** 2
@@ -59,18 +61,15 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     return (alpha * (1 - ms_ssim) + (1 - alpha) * l1).mean()
 
 
-def chroma_plane(hsv: torch.Tensor) -> torch.Tensor:
-    """[N, 3, H, W] HSV in [0,1] -> (0.5 + 0.5 S cos 2piH, 0.5 + 0.5 S sin 2piH, V), also in
-    [0,1]. Hue is an angle: plain L1 on H calls the reds on either side of the wrap (H near 0
+def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> torch.Tensor:
+    """What temc trains on: the paper's mix loss on the R'G'B' of the network's HSV output
+    (the core's inverse, before PQ decoding).
+
+    Not on H, S, V themselves: L1 on H calls the reds on either side of the wrap (H near 0
     and near 1) opposites, and a network trained that way answers red with the hue between
-    them (yellow, green). On the chroma plane they are neighbours, and the hue of a grey
-    pixel, which is undefined, weighs nothing."""
-    h, s, v = hsv[:, 0:1], hsv[:, 1:2], hsv[:, 2:3]
-    angle = 2 * torch.pi * h
-    return torch.cat([0.5 + 0.5 * s * torch.cos(angle), 0.5 + 0.5 * s * torch.sin(angle), v], 1)
-
-
-def training_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """What temc trains on: the paper's mix loss on the chroma plane of the network's HSV
-    output (see chroma_plane), so hue wraps around."""
-    return mix_loss(chroma_plane(pred), chroma_plane(target))
+    them (yellow, green). Not on the chroma plane (S cos 2piH, S sin 2piH) either, which we
+    tried next: there MS-SSIM's contrast term rewards a low-variance prediction, and
+    shrinking S shrinks every chroma variance at once; the networks learned to desaturate
+    (cornell-spiky's walls at S 0.17 against 0.34). In R'G'B' hue wraps, the hue of grey
+    weighs nothing, and desaturating moves every channel's mean."""
+    return mix_loss(hsv_to_rgb(pred), hsv_to_rgb(target), alpha)

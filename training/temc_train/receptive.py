@@ -63,7 +63,10 @@ def measure(arch: str) -> Reach:
     period = 512  # room for each footprint; doubled if one reaches its segment's edge
     while True:
         w = ALIGNMENT * period
-        xs = [torch.zeros(1, c, STRIP_H, w, dtype=torch.float64, requires_grad=True)
+        # Random, not zero, inputs: the kernel head multiplies the predicted weights by the
+        # input, so at zero input the weights' paths would carry no gradient.
+        g = torch.Generator().manual_seed(0)
+        xs = [torch.rand(1, c, STRIP_H, w, generator=g, dtype=torch.float64).requires_grad_()
               for c in (CHROMA, LUMA, AUX)]
         # Output pixel k sits in the middle of segment k, at phase k of the pooling grid.
         centres = [k * period + period // 2 + k for k in range(ALIGNMENT)]

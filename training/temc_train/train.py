@@ -15,8 +15,9 @@ validation loss. RUN/model.pt is the final checkpoint in the form `export.py --c
 reads.
 
 Recipe (the paper's where it fits): Adam, learning rate 1e-4, random 128x128 crops with
-flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`) taken on the chroma plane so
-that hue wraps around (`loss.training_loss`), aux dropout (`data.py`).
+flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`) taken on R'G'B' so that hue
+wraps around (`loss.training_loss`), aux dropout (`data.py`). Ours: the kernel-predicting
+output head (`models.py`, `--head`).
 """
 
 import argparse
@@ -28,8 +29,8 @@ import numpy as np
 import torch
 
 from . import data
-from .loss import training_loss
-from .models import ARCHS, build, count_params
+from .loss import ALPHA, training_loss
+from .models import ARCHS, HEADS, build, count_params
 
 
 def _save(obj, path):
@@ -38,14 +39,14 @@ def _save(obj, path):
     os.replace(tmp, path)
 
 
-def validate(model, val, batch=8) -> float:
+def validate(model, val, alpha, batch=8) -> float:
     model.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for i in range(0, len(val[0]), batch):
             xs = [torch.from_numpy(v[i:i + batch]) for v in val]
             pred = model(*xs[:3])
-            total += float(training_loss(pred, xs[3])) * len(xs[0])
+            total += float(training_loss(pred, xs[3], alpha)) * len(xs[0])
             n += len(xs[0])
     model.train()
     return total / max(n, 1)
@@ -61,13 +62,14 @@ def train(a) -> dict:
         raise SystemExit(f"{a.data}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
     torch.manual_seed(a.seed)
-    model = build(a.arch, a.width)
+    model = build(a.arch, a.width, a.head)
     opt = torch.optim.Adam(model.parameters(), lr=a.lr)
     state = {"step": 0, "train_s": 0.0, "rng": np.random.default_rng(a.seed).bit_generator.state}
     if os.path.exists(ckpt_path):
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        if (ck["arch"], ck["width"]) != (a.arch, a.width):
-            raise SystemExit(f"{ckpt_path} holds {ck['arch']} at width {ck['width']}")
+        held = (ck["arch"], ck["width"], ck.get("head", "direct"))
+        if held != (a.arch, a.width, a.head):
+            raise SystemExit(f"{ckpt_path} holds {held[0]} at width {held[1]}, head {held[2]}")
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["opt"])
         state = ck["state"]
@@ -87,16 +89,16 @@ def train(a) -> dict:
     def checkpoint():
         state["rng"] = rng.bit_generator.state
         _save({"model": model.state_dict(), "opt": opt.state_dict(), "state": state,
-               "arch": a.arch, "width": a.width}, ckpt_path)
+               "arch": a.arch, "width": a.width, "head": a.head}, ckpt_path)
 
     if state["step"] == 0:
-        w.writerow([0, 0.0, "", f"{validate(model, val):.6f}"])
+        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha):.6f}"])
         log.flush()
     model.train()
     while state["train_s"] < budget and state["step"] < a.max_steps:
         t0 = time.process_time()
         xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
-        loss = training_loss(model(*xs[:3]), xs[3])
+        loss = training_loss(model(*xs[:3]), xs[3], a.alpha)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -107,7 +109,7 @@ def train(a) -> dict:
         now = time.monotonic()
         done = state["train_s"] >= budget or state["step"] >= a.max_steps
         if now - last_val >= a.val_minutes * 60 or done:
-            v = validate(model, val)
+            v = validate(model, val, a.alpha)
             w.writerow([state["step"], f"{state['train_s']:.1f}", f"{ema:.6f}", f"{v:.6f}"])
             log.flush()
             print(f"step {state['step']}  {state['train_s']:.0f}/{budget:.0f} s  "
@@ -118,7 +120,7 @@ def train(a) -> dict:
             last_save = time.monotonic()
     checkpoint()
     log.close()
-    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width,
+    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width, "head": a.head,
              "dataset": os.path.basename(os.path.normpath(a.data)),
              "train_steps": state["step"], "train_seconds": state["train_s"],
              "params": count_params(model)}
@@ -131,6 +133,8 @@ def main(argv=None):
     ap.add_argument("--data", required=True, help="a temc-render dataset folder")
     ap.add_argument("--arch", choices=ARCHS, required=True)
     ap.add_argument("--width", type=float, required=True)
+    ap.add_argument("--head", choices=HEADS, default="kernel",
+                    help="output head (models.py): kernel (ours, default) or direct (the paper's)")
     ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
     ap.add_argument("--hours", type=float, default=1.0,
                     help="training budget in CPU hours spent in steps")
@@ -138,6 +142,8 @@ def main(argv=None):
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--crop", type=int, default=data.CROP)
     ap.add_argument("--lr", type=float, default=1e-4)
+    ap.add_argument("--alpha", type=float, default=ALPHA,
+                    help="MS-SSIM weight of the mix loss (the paper's 0.84; 0 = L1 only)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--val-minutes", type=float, default=5.0)

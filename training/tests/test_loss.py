@@ -74,3 +74,23 @@ def test_training_loss_wraps_hue_and_ignores_the_hue_of_grey():
     p = img(0.2, 0.9).requires_grad_()
     training_loss(p, img(0.01, 0.9)).backward()
     assert p.grad[:, 0].abs().sum() > 0
+
+
+def test_training_loss_matches_the_core_and_does_not_reward_desaturation():
+    from temc_train import color
+    from temc_train.loss import training_loss
+    from temc_train.models import hsv_to_rgb
+
+    g = torch.Generator().manual_seed(5)
+    hsv = torch.rand(1, 3, 8, 8, generator=g)
+    want = color.hsv_to_rgb(hsv[0].permute(1, 2, 0).numpy())
+    assert torch.allclose(hsv_to_rgb(hsv)[0].permute(1, 2, 0), torch.from_numpy(want), atol=1e-6)
+
+    # A flat red wall, and a prediction of it whose hue is noisy around the wrap: halving
+    # its saturation lowers the variance, but must not lower the loss.
+    def wall(h, s):
+        return torch.stack([h, torch.full_like(h, s), torch.full_like(h, 0.6)])[None]
+
+    ref = wall(torch.full((64, 64), 0.01), 0.8)
+    h = torch.remainder(0.01 + 0.04 * torch.randn(64, 64, generator=g), 1.0)
+    assert training_loss(wall(h, 0.8), ref) < training_loss(wall(h, 0.4), ref)
