@@ -200,15 +200,18 @@ def main(argv=None):
     spps = sorted({r["spp"] for r in rows})
     metrics = list(ev.METRICS)
 
+    def values(name, spp, key):
+        return [r[key] for r in rows if r["denoiser"] == name and r["spp"] == spp]
+
     def mean(name, spp, key):
-        v = [r[key] for r in rows if r["denoiser"] == name and r["spp"] == spp]
+        v = values(name, spp, key)
         return float(np.mean(v)) if v else float("nan")
 
     def geomean(name, spp, key):
         """The plot's and the raw-spp equivalence's average: one scene with a huge error
         (named-firefly's noisy input) would decide an arithmetic mean alone."""
-        v = [max(r[key], 1e-12) for r in rows if r["denoiser"] == name and r["spp"] == spp]
-        return float(np.exp(np.mean(np.log(v)))) if v else float("nan")
+        v = np.maximum(values(name, spp, key), 1e-12)
+        return float(np.exp(np.mean(np.log(v)))) if v.size else float("nan")
 
     # Error against time: raw rendering at rising spp, and each denoiser after each spp.
     fig, ax = plt.subplots(figsize=(7, 4.5))
