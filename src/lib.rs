@@ -39,6 +39,8 @@ mod error;
 pub mod filter;
 pub mod image;
 pub mod io;
+/// Applies the network's per-pixel multi-level filters to linear radiance (docs/reconstruction.md).
+pub mod reconstruct;
 pub mod tile;
 
 pub use error::{Error, Result};

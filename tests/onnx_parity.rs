@@ -1,5 +1,6 @@
 //! tract against onnxruntime: every architecture's test model, run by the engine on the
-//! golden inputs, must match the golden outputs that onnxruntime computed (max abs 1e-4).
+//! golden inputs, must match the golden filter logits (every pyramid level) that
+//! onnxruntime computed (max abs 1e-4).
 //! Models and goldens are made by `python -m temc_train.export --golden tests/data`.
 //! The shipped, trained models in onnx/ are checked the same way against the goldens
 //! `scripts/ship-models` wrote for them in tests/data/golden/shipped/.
@@ -50,9 +51,7 @@ fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
     let chroma = common::read_npy(&golden.join("chroma.npy"));
     let luma = common::read_npy(&golden.join("luma.npy"));
     let aux = common::read_npy(&golden.join("aux.npy"));
-    let want = common::read_npy(&golden.join("hsv.npy"));
     let (h, w) = (chroma.shape[2], chroma.shape[3]);
-    assert_eq!(want.shape, vec![1, 3, h, w]);
     let input = NetInput {
         chroma: &chroma.data,
         luma: &luma.data,
@@ -61,35 +60,31 @@ fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
     let got = model
         .run(input, h, w)
         .unwrap_or_else(|e| panic!("{name}: {e}"));
-    // Hue (channel 0) is compared around the circle (0.99999 and 0.00001 are neighbours)
-    // and scaled by the larger saturation, which is what hue changes in a colour: the hue
-    // of a nearly grey pixel is a ratio of two tiny numbers that runtimes round differently.
-    let plane = h * w;
-    let max_diff = got
-        .iter()
-        .zip(&want.data)
-        .enumerate()
-        .map(|(i, (a, b))| {
-            let d = (a - b).abs();
-            if i / plane % 3 == 0 {
-                let s = got[i + plane].max(want.data[i + plane]);
-                d.min(1.0 - d) * s
-            } else {
-                d
-            }
-        })
-        .fold(0f32, f32::max);
-    assert!(
-        got.iter().all(|v| v.is_finite()),
-        "{name}: non-finite output"
-    );
-    assert!(max_diff <= 1e-4, "{name}: max abs diff {max_diff:e} > 1e-4");
-    // The output must actually depend on the input: a constant output would hide a broken
-    // graph behind a matching golden.
-    let spread = want.data.iter().fold(f32::INFINITY, |m, &v| m.min(v))
-        - want.data.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
-    assert!(spread.abs() > 1e-3, "{name}: golden output is constant");
-    println!("{name}: {h}x{w}, max abs diff vs onnxruntime {max_diff:.2e}");
+    assert_eq!(got.len(), model.info().levels, "{name}: one output per level");
+    for (level, got) in got.iter().enumerate() {
+        let want = common::read_npy(&golden.join(format!("filters{level}.npy")));
+        let c = model.info().filter_channels();
+        assert_eq!(want.shape, vec![1, c, h >> level, w >> level]);
+        let max_diff = got
+            .iter()
+            .zip(&want.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0f32, f32::max);
+        assert!(
+            got.iter().all(|v| v.is_finite()),
+            "{name}: non-finite output"
+        );
+        assert!(
+            max_diff <= 1e-4,
+            "{name} level {level}: max abs diff {max_diff:e} > 1e-4"
+        );
+        // The output must actually depend on the input: a constant output would hide a
+        // broken graph behind a matching golden.
+        let spread = want.data.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v))
+            - want.data.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+        assert!(spread > 1e-3, "{name}: golden output is constant");
+        println!("{name} level {level}: {h}x{w}, max abs diff vs onnxruntime {max_diff:.2e}");
+    }
 }
 
 #[test]

@@ -207,7 +207,7 @@ fn nan_in_each_aux_buffer_is_harmless() {
 }
 
 #[test]
-fn a_firefly_does_not_reach_beyond_the_receptive_field() {
+fn a_firefly_does_not_reach_beyond_the_receptive_field_and_reconstruction() {
     // OIDN issue #210: a single huge value blew up a whole image. With a fixed exposure,
     // pixels farther from the firefly than the receptive field must be bit-identical to a
     // run without it, and those near it finite.
@@ -216,7 +216,11 @@ fn a_firefly_does_not_reach_beyond_the_receptive_field() {
         .unwrap()
         .info()
         .clone();
-    let radius = info.receptive_field / 2 + 1;
+    // The network's reach, then the reconstruction's (its filters at a pixel read that far).
+    let radius = info.receptive_field / 2
+        + 1
+        + temc::reconstruct::reach(info.levels, info.kernel)
+        + (1 << (info.levels - 1));
     let (w, h) = (radius * 2 + 64, 48);
     let clean = smooth(w, h);
     let mut fire = clean.clone();

@@ -39,6 +39,11 @@ pub struct Options {
     pub seed: u64,
     /// Also render the named stress scenes into the test split.
     pub named: bool,
+    /// Sample counts at which a prefix of the reference render is also written
+    /// (`ref-sppNNNN.exr`): noisy targets, independent of the inputs, for Noise2Noise
+    /// training at a fraction of the reference's cost. Empty in data sets made before.
+    #[serde(default)]
+    pub ref_prefix_spp: Vec<u32>,
 }
 
 /// One finished scene.
@@ -54,6 +59,9 @@ pub struct Record {
     pub noisy: Vec<(u32, String)>,
     /// Reference file.
     pub reference: String,
+    /// Prefixes of the reference render by spp (see [`Options::ref_prefix_spp`]).
+    #[serde(default)]
+    pub reference_prefixes: Vec<(u32, String)>,
     /// Seconds for the noisy progressive render and for the reference.
     pub seconds_noisy: f64,
     /// Seconds for the reference.
@@ -182,25 +190,36 @@ pub fn run(
             files.push((*spp, f));
         }
         let t1 = Instant::now();
+        let ref_checkpoints = reference_checkpoints(opts);
         let reference = render_progressive(
             &sc,
             &Settings {
                 seed: !base.seed,
                 ..base
             },
-            &[opts.ref_spp],
+            &ref_checkpoints,
             progress,
             cancel,
         )
         .map_err(|_| "cancelled".to_string())?;
         let seconds_reference = t1.elapsed().as_secs_f64();
-        reference[0].write_exr(&dir.join("ref.exr"))?;
+        let mut reference_prefixes = Vec::new();
+        for (spp, img) in ref_checkpoints.iter().zip(&reference) {
+            let f = if *spp == opts.ref_spp {
+                "ref.exr".to_string()
+            } else {
+                reference_prefixes.push((*spp, format!("ref-spp{spp:04}.exr")));
+                format!("ref-spp{spp:04}.exr")
+            };
+            img.write_exr(&dir.join(&f))?;
+        }
         let r = Record {
             name: name.clone(),
             split: split.to_string(),
             dir: format!("{split}/{name}"),
             noisy: files,
             reference: "ref.exr".into(),
+            reference_prefixes,
             seconds_noisy,
             seconds_reference,
             features: format!("{:?}", sc.features()),
@@ -215,6 +234,21 @@ pub fn run(
         write_manifest(opts, out, &records)?;
     }
     write_manifest(opts, out, &records)
+}
+
+/// The reference render's checkpoints: the prefixes below `ref_spp`, then `ref_spp`
+/// (sorted, deduplicated, so the last is the full reference).
+fn reference_checkpoints(opts: &Options) -> Vec<u32> {
+    let mut cps: Vec<u32> = opts
+        .ref_prefix_spp
+        .iter()
+        .copied()
+        .filter(|&c| c > 0 && c < opts.ref_spp)
+        .chain([opts.ref_spp])
+        .collect();
+    cps.sort_unstable();
+    cps.dedup();
+    cps
 }
 
 /// FNV-1a, a stable hash for seeds.

@@ -97,6 +97,10 @@ enum Command {
         /// Reference sample count.
         #[arg(long, default_value_t = 4096)]
         ref_spp: u32,
+        /// Also write the reference render at these sample counts (noisy targets for
+        /// Noise2Noise training), comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        ref_prefix_spp: Vec<u32>,
         /// Base seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -303,6 +307,7 @@ fn run(cli: Cli, cancel: &AtomicBool) -> Result<(), String> {
             size,
             spp,
             ref_spp,
+            ref_prefix_spp,
             seed,
             no_named,
             out,
@@ -314,6 +319,7 @@ fn run(cli: Cli, cancel: &AtomicBool) -> Result<(), String> {
                 ref_spp,
                 seed,
                 named: !no_named,
+                ref_prefix_spp,
             };
             let t = Instant::now();
             let b = bar(size as u64);

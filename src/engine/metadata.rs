@@ -7,8 +7,12 @@ use std::collections::BTreeMap;
 
 use crate::Error;
 
-/// The metadata format this build understands.
-pub const FORMAT_VERSION: &str = "1";
+/// The metadata format this build understands: 2 = the network predicts filters
+/// (docs/reconstruction.md); format 1 models (an `hsv` output) are refused.
+pub const FORMAT_VERSION: &str = "2";
+
+/// The aux buffers a layout may name, with their channel counts.
+pub const AUX_BUFFERS: [(&str, usize); 3] = [("albedo", 3), ("normal", 3), ("depth", 1)];
 
 /// The aux layout every shipped model uses: albedo (3), normal (3), depth (1).
 pub const AUX_LAYOUT: &str = "albedo:3,normal:3,depth:1";
@@ -34,6 +38,16 @@ pub struct ModelInfo {
     pub aux_layout: String,
     /// Number of aux channels, from the layout.
     pub aux_channels: usize,
+    /// The aux layout's buffers in plane order, each one of [`AUX_BUFFERS`].
+    pub aux_planes: Vec<(String, usize)>,
+    /// Pyramid levels of the reconstruction (`temc.levels`).
+    pub levels: usize,
+    /// Taps per side of every level's kernels (`temc.kernel`, odd).
+    pub kernel: usize,
+    /// Whether the reconstruction divides by albedo + eps first (`temc.demodulate`).
+    pub demodulate: bool,
+    /// The demodulation's epsilon (`temc.demod_eps`).
+    pub demod_eps: f32,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -88,7 +102,20 @@ impl ModelInfo {
             }
         };
         let aux_layout = get("temc.aux_layout")?.to_string();
-        let aux_channels = parse_layout(&aux_layout)?;
+        let aux_planes = parse_layout(&aux_layout)?;
+        let aux_channels = aux_planes.iter().map(|(_, n)| n).sum();
+        let levels: usize = num("temc.levels", get("temc.levels")?)?;
+        let kernel: usize = num("temc.kernel", get("temc.kernel")?)?;
+        let demodulate = match get("temc.demodulate")? {
+            "0" => false,
+            "1" => true,
+            v => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.demodulate` = {v:?} must be 0 or 1"
+                )))
+            }
+        };
+        let demod_eps: f32 = num("temc.demod_eps", get("temc.demod_eps")?)?;
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -107,6 +134,21 @@ impl ModelInfo {
                 )));
             }
         }
+        if !(1..=5).contains(&levels) || (1usize << (levels - 1)) > alignment {
+            return Err(Error::Model(format!(
+                "metadata `temc.levels` = {levels} must be 1..=5 and 2^(levels-1) must divide the alignment"
+            )));
+        }
+        if kernel.is_multiple_of(2) || !(1..=9).contains(&kernel) {
+            return Err(Error::Model(format!(
+                "metadata `temc.kernel` = {kernel} must be odd, 1..=9"
+            )));
+        }
+        if !(demod_eps > 0.0 && demod_eps.is_finite()) {
+            return Err(Error::Model(format!(
+                "metadata `temc.demod_eps` = {demod_eps} must be positive"
+            )));
+        }
         let test_relmse = match get("temc.test_relmse")? {
             "none" | "" => None,
             v => Some(num("temc.test_relmse", v)?),
@@ -121,6 +163,11 @@ impl ModelInfo {
             chroma_channels,
             aux_layout,
             aux_channels,
+            aux_planes,
+            levels,
+            kernel,
+            demodulate,
+            demod_eps,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
@@ -134,11 +181,17 @@ impl ModelInfo {
     pub fn is_untrained(&self) -> bool {
         self.dataset == "none"
     }
+
+    /// Channels of one level's filter output: luma taps, chroma taps, two blend logits.
+    pub fn filter_channels(&self) -> usize {
+        2 * self.kernel * self.kernel + 2
+    }
 }
 
-/// Sums the channel counts of a layout such as `albedo:3,normal:3,depth:1`.
-fn parse_layout(layout: &str) -> Result<usize, Error> {
-    let mut total = 0;
+/// The buffers of a layout such as `albedo:3,normal:3,depth:1`, in order. Each must be one
+/// of [`AUX_BUFFERS`] with its channel count, at most once.
+fn parse_layout(layout: &str) -> Result<Vec<(String, usize)>, Error> {
+    let mut planes: Vec<(String, usize)> = Vec::new();
     for part in layout.split(',').filter(|p| !p.is_empty()) {
         let (name, n) = part.split_once(':').ok_or_else(|| {
             Error::Model(format!(
@@ -155,9 +208,14 @@ fn parse_layout(layout: &str) -> Result<usize, Error> {
                 "metadata `temc.aux_layout`: entry {part:?} is empty"
             )));
         }
-        total += n;
+        if !AUX_BUFFERS.contains(&(name, n)) || planes.iter().any(|(p, _)| p == name) {
+            return Err(Error::Model(format!(
+                "metadata `temc.aux_layout`: entry {part:?} is not one of {AUX_BUFFERS:?} (or repeats)"
+            )));
+        }
+        planes.push((name.to_string(), n));
     }
-    Ok(total)
+    Ok(planes)
 }
 
 #[cfg(test)]
@@ -166,7 +224,11 @@ mod tests {
 
     fn card() -> Vec<(&'static str, &'static str)> {
         vec![
-            ("temc.format", "1"),
+            ("temc.format", "2"),
+            ("temc.levels", "3"),
+            ("temc.kernel", "5"),
+            ("temc.demodulate", "0"),
+            ("temc.demod_eps", "0.01"),
             ("temc.architecture", "temc2"),
             ("temc.width", "0.0625"),
             ("temc.alignment", "32"),
@@ -187,6 +249,8 @@ mod tests {
         let m = ModelInfo::from_props(card()).unwrap();
         assert_eq!(m.architecture, "temc2");
         assert_eq!((m.alignment, m.chroma_channels, m.aux_channels), (32, 2, 7));
+        assert_eq!((m.levels, m.kernel, m.filter_channels()), (3, 5, 52));
+        assert_eq!(m.aux_planes[2], ("depth".to_string(), 1));
         assert_eq!(m.test_relmse, None);
         assert!(m.is_untrained());
         assert!(!m.raw.contains_key("other.key"));
@@ -197,7 +261,12 @@ mod tests {
         for (key, bad) in [
             ("temc.alignment", Some("24")),
             ("temc.alignment", Some("x")),
-            ("temc.format", Some("2")),
+            ("temc.format", Some("1")),
+            ("temc.levels", Some("6")),
+            ("temc.kernel", Some("4")),
+            ("temc.demodulate", Some("yes")),
+            ("temc.aux_layout", Some("albedo:3,albedo:3")),
+            ("temc.aux_layout", Some("normals:3")),
             ("temc.chroma_encoding", Some("lab")),
             ("temc.aux_layout", Some("albedo3")),
             ("temc.width", Some("-1")),

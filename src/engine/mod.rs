@@ -8,7 +8,7 @@
 
 mod metadata;
 
-pub use metadata::{ModelInfo, AUX_LAYOUT, FORMAT_VERSION};
+pub use metadata::{ModelInfo, AUX_BUFFERS, AUX_LAYOUT, FORMAT_VERSION};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -20,8 +20,11 @@ use crate::Error;
 
 /// Names of the graph's inputs, in the order [`Model::run`] takes them.
 pub const INPUT_NAMES: [&str; 3] = ["chroma", "luma", "aux"];
-/// Name of the graph's output.
-pub const OUTPUT_NAME: &str = "hsv";
+/// Names of the graph's outputs: `filters0` (full resolution) .. `filters{levels-1}`, one per
+/// pyramid level of the reconstruction (docs/reconstruction.md).
+pub fn output_name(level: usize) -> String {
+    format!("filters{level}")
+}
 
 type Plan = TypedSimplePlan;
 
@@ -42,6 +45,8 @@ pub struct Model {
     graph: InferenceModel,
     /// Position of chroma, luma and aux among the graph's inputs.
     input_order: [usize; 3],
+    /// Position of level l's filters among the graph's outputs.
+    output_order: Vec<usize>,
     plans: Mutex<HashMap<(usize, usize), Arc<Plan>>>,
     memory: std::sync::OnceLock<(f64, f64)>,
 }
@@ -110,25 +115,32 @@ impl Model {
         }
         let outputs = graph.output_outlets().map_err(model_err("graph outputs"))?;
         // An output is named by its outlet label (the ONNX value name), not its node.
-        let out_name = outputs
-            .first()
+        let out_names: Vec<String> = outputs
+            .iter()
             .map(|o| {
                 graph
                     .outlet_label(*o)
                     .unwrap_or(&graph.node(o.node).name)
                     .to_string()
             })
-            .unwrap_or_default();
-        if outputs.len() != 1 || out_name != OUTPUT_NAME {
-            return Err(Error::Model(format!(
-                "expected one output named {OUTPUT_NAME:?}, found {} ({out_name:?} first)",
-                outputs.len()
-            )));
-        }
+            .collect();
+        let want: Vec<String> = (0..info.levels).map(output_name).collect();
+        let output_order = want
+            .iter()
+            .map(|n| out_names.iter().position(|o| o == n))
+            .collect::<Option<Vec<usize>>>()
+            .filter(|_| out_names.len() == want.len())
+            .ok_or_else(|| {
+                Error::Model(format!(
+                    "expected the outputs {want:?} (temc.levels = {}), found {out_names:?}",
+                    info.levels
+                ))
+            })?;
         Ok(Self {
             info,
             graph,
             input_order,
+            output_order,
             plans: Mutex::new(HashMap::new()),
             memory: std::sync::OnceLock::new(),
         })
@@ -279,8 +291,9 @@ impl Model {
             })
     }
 
-    /// Runs the network on one H x W tile; returns the `hsv` output, 3 x H x W values.
-    pub fn run(&self, input: NetInput<'_>, h: usize, w: usize) -> Result<Vec<f32>, Error> {
+    /// Runs the network on one H x W tile; returns the filter logits of every level, level l
+    /// holding `filter_channels x (H >> l) x (W >> l)` values.
+    pub fn run(&self, input: NetInput<'_>, h: usize, w: usize) -> Result<Vec<Vec<f32>>, Error> {
         let plan = self.plan(h, w)?;
         let hw = h * w;
         let parts = [
@@ -306,16 +319,25 @@ impl Model {
         let out = plan
             .run(inputs)
             .map_err(|e| Error::Inference(format!("{h}x{w}: {e:#}")))?;
-        let view = out[0]
-            .try_as_plain_ram()
-            .and_then(|v| v.as_slice::<f32>().map(<[f32]>::to_vec))
-            .map_err(|e| Error::Inference(format!("reading output: {e:#}")))?;
-        if view.len() != 3 * hw {
-            return Err(Error::Model(format!(
-                "output has {} values, expected 3x{h}x{w}",
-                view.len()
-            )));
+        let c = self.info.filter_channels();
+        let mut levels = Vec::with_capacity(self.output_order.len());
+        for (l, &slot) in self.output_order.iter().enumerate() {
+            let view = out[slot]
+                .try_as_plain_ram()
+                .and_then(|v| v.as_slice::<f32>().map(<[f32]>::to_vec))
+                .map_err(|e| Error::Inference(format!("reading {}: {e:#}", output_name(l))))?;
+            let want = c * (h >> l) * (w >> l);
+            if view.len() != want {
+                return Err(Error::Model(format!(
+                    "output {} has {} values, expected {c}x{}x{}",
+                    output_name(l),
+                    view.len(),
+                    h >> l,
+                    w >> l
+                )));
+            }
+            levels.push(view);
         }
-        Ok(view)
+        Ok(levels)
     }
 }

@@ -1,4 +1,8 @@
-//! One execution: validate, per-image statistics, tiles in parallel, staged output.
+//! One execution, in named stages: [`validate`] the images, [`snapshot`] inputs that share
+//! bytes with the output, compute the [`image_statistics`] once, [`plan`] the tiles, then per
+//! tile (in parallel) [`pack_tile`], run the network, [`reconstruct`](crate::reconstruct)
+//! the tile's core from the predicted filters and the noisy linear radiance; finally
+//! [`write_output`], only when every tile has succeeded.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -7,8 +11,9 @@ use rayon::prelude::*;
 
 use super::{ExecuteStats, ImageName, Monitor, RawImage};
 use crate::color::{self, features, Exposure};
-use crate::engine::{Model, NetInput};
+use crate::engine::{Model, ModelInfo, NetInput};
 use crate::image::{read3, Layout};
+use crate::reconstruct;
 use crate::tile::{Tile, TilePlan};
 use crate::Error;
 
@@ -21,10 +26,10 @@ pub(super) struct Job<'m> {
     pub tile_size: usize,
     pub verbose: i32,
 }
-
 /// Floats per window pixel that a tile allocates besides tract: chroma 2, luma 1, aux 7,
-/// excess 1, network output 3.
-const TILE_PLANES: f64 = 14.0;
+/// noisy radiance 3, albedo 3, the reconstruction's output 3 and its scratch
+/// ([`reconstruct::SCRATCH_PLANES`]).
+const TILE_PLANES: f64 = 19.0 + reconstruct::SCRATCH_PLANES;
 
 /// tract's scratch beyond the live tensors the engine's estimate counts (packing panels,
 /// direct-convolution buffers, allocator slack): one 832x832 TEMC-2 tile peaked about 1.4
@@ -46,6 +51,29 @@ impl Source {
         // (x, y) is inside the image (callers clamp to it).
         unsafe { read3(self.img.ptr, &self.img.layout, x, y) }
     }
+
+    /// Every pixel, row by row.
+    fn pixels(&self) -> impl Iterator<Item = [f32; 3]> + '_ {
+        let (w, h) = (self.img.layout.width, self.img.layout.height);
+        (0..h).flat_map(move |y| (0..w).map(move |x| self.px(x, y)))
+    }
+}
+
+/// The inputs one execution reads: colour and the aux buffers the caller gave.
+struct Sources {
+    color: Source,
+    albedo: Option<Source>,
+    normal: Option<Source>,
+    depth: Option<Source>,
+    /// Bytes copied because they overlapped the output.
+    snapshot_bytes: usize,
+}
+
+/// What is computed once per image, before tiling, so every tile sees the same numbers.
+#[derive(Clone, Copy)]
+struct Statistics {
+    exposure: Exposure,
+    depth_scale: Option<f32>,
 }
 
 fn overlaps(a: &RawImage, b: &RawImage) -> bool {
@@ -79,28 +107,22 @@ impl SyncPtr {
     }
 }
 
-/// Runs the job. With an "output" image the result is written there and `None` returned;
-/// without one, the packed RGB result is returned instead.
-pub(super) fn run(
-    job: Job<'_>,
-    pool: &rayon::ThreadPool,
-    monitor: Option<&mut Monitor<'_>>,
-) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
-    let model = job.model.as_ref();
-    let info = model.info();
-    let color = job.images[ImageName::Color as usize]
+const NAMES: [ImageName; 5] = [
+    ImageName::Color,
+    ImageName::Albedo,
+    ImageName::Normal,
+    ImageName::Depth,
+    ImageName::Output,
+];
+
+/// Stage 1: colour is set, every image has colour's size and enough channels. Returns
+/// (width, height).
+fn validate(images: &[Option<RawImage>; 5]) -> Result<(usize, usize), Error> {
+    let color = images[ImageName::Color as usize]
         .ok_or_else(|| Error::InvalidOperation("image \"color\" is not set".into()))?;
-    let output = job.images[ImageName::Output as usize];
     let (w, h) = (color.layout.width, color.layout.height);
-    for (i, img) in job.images.iter().enumerate() {
+    for (img, name) in images.iter().zip(NAMES) {
         let Some(img) = img else { continue };
-        let name = [
-            ImageName::Color,
-            ImageName::Albedo,
-            ImageName::Normal,
-            ImageName::Depth,
-            ImageName::Output,
-        ][i];
         let l = &img.layout;
         if (l.width, l.height) != (w, h) {
             return Err(Error::InvalidArgument(format!(
@@ -120,12 +142,16 @@ pub(super) fn run(
             )));
         }
     }
+    Ok((w, h))
+}
 
-    // In-place: inputs that share bytes with the output are copied first, because tiles
-    // write while others still read.
+/// Stage 2: inputs that share bytes with the output are copied first, because tiles write
+/// while others still read.
+fn snapshot(images: &[Option<RawImage>; 5]) -> Result<Sources, Error> {
+    let output = images[ImageName::Output as usize];
     let mut snapshot_bytes = 0usize;
-    let source = |i: ImageName, snapshot_bytes: &mut usize| -> Result<Option<Source>, Error> {
-        let Some(img) = job.images[i as usize] else {
+    let mut source = |i: ImageName| -> Result<Option<Source>, Error> {
+        let Some(img) = images[i as usize] else {
             return Ok(None);
         };
         if !output.as_ref().is_some_and(|o| overlaps(&img, o)) {
@@ -136,7 +162,7 @@ pub(super) fn run(
             .map_err(|_| Error::OutOfMemory(format!("copying in-place image {:?}", i.as_str())))?;
         // SAFETY: the caller guaranteed `span` readable bytes at `ptr`.
         copy.extend_from_slice(unsafe { std::slice::from_raw_parts(img.ptr, img.span) });
-        *snapshot_bytes += img.span;
+        snapshot_bytes += img.span;
         let img = RawImage {
             ptr: copy.as_mut_ptr(),
             ..img
@@ -146,33 +172,45 @@ pub(super) fn run(
             _copy: Some(copy),
         }))
     };
-    let color = source(ImageName::Color, &mut snapshot_bytes)?.expect("color is set");
-    let albedo = source(ImageName::Albedo, &mut snapshot_bytes)?;
-    let normal = source(ImageName::Normal, &mut snapshot_bytes)?;
-    let depth = source(ImageName::Depth, &mut snapshot_bytes)?;
+    let color = source(ImageName::Color)?.expect("validated: color is set");
+    let albedo = source(ImageName::Albedo)?;
+    let normal = source(ImageName::Normal)?;
+    let depth = source(ImageName::Depth)?;
+    Ok(Sources {
+        color,
+        albedo,
+        normal,
+        depth,
+        snapshot_bytes,
+    })
+}
 
-    // Per-image statistics, once, before tiling.
-    let ldr = |p: [f32; 3]| p.map(|c| if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) });
+/// Stage 3: exposure (the caller's input scale, or automatic for HDR) and the depth scale.
+fn image_statistics(job: &Job<'_>, src: &Sources, info: &ModelInfo) -> Result<Statistics, Error> {
     let input_scale = match (job.hdr, job.input_scale) {
         (_, Some(s)) => s,
         (false, None) => 1.0,
-        (true, None) => color::auto_input_scale(
-            (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
-                .map(|(x, y)| color.px(x, y)),
-        ),
+        (true, None) => color::auto_input_scale(src.color.pixels()),
     };
-    let exposure = Exposure::new(input_scale, info.pq_nits_per_unit)?;
-    let depth_scale = depth.as_ref().and_then(|d| {
-        features::depth_scale(
-            (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
-                .map(|(x, y)| d.px(x, y)[0]),
-        )
-    });
+    Ok(Statistics {
+        exposure: Exposure::new(input_scale, info.pq_nits_per_unit)?,
+        depth_scale: src
+            .depth
+            .as_ref()
+            .and_then(|d| features::depth_scale(d.pixels().map(|p| p[0]))),
+    })
+}
 
-    // Tile size from the memory budget.
-    let threads = pool.current_num_threads().max(1);
+/// Stage 4: the tile plan from the memory budget (or the caller's tile size), and the
+/// estimated peak in bytes.
+fn plan(
+    job: &Job<'_>,
+    (w, h): (usize, usize),
+    snapshot_bytes: usize,
+    threads: usize,
+) -> Result<(TilePlan, f64), Error> {
+    let model = job.model.as_ref();
+    let info = model.info();
     let (weights, per_px) = model.memory_estimate()?;
     let per_px = per_px * TRACT_SCRATCH + TILE_PLANES * 4.0;
     let staging = (w * h * 12 + snapshot_bytes) as f64;
@@ -188,12 +226,129 @@ pub(super) fn run(
     let plan = TilePlan::new(w, h, info.alignment, info.tile_overlap, side)?;
     let concurrent = threads.min(plan.tiles.len());
     let (tw, th) = plan.window;
-    let estimated_peak = staging + weights + concurrent as f64 * per_px * (tw * th) as f64;
+    let peak = staging + weights + concurrent as f64 * per_px * (tw * th) as f64;
+    Ok((plan, peak))
+}
+
+/// One tile's planes: the network's inputs and what the reconstruction filters.
+struct Packed {
+    chroma: Vec<f32>,
+    luma: Vec<f32>,
+    aux: Vec<f32>,
+    /// Noisy linear radiance [3, n], sanitised (and clamped to [0, 1] in LDR mode).
+    rgb: Vec<f32>,
+    /// The albedo feature [3, n] (0 where not given), for demodulation.
+    albedo: Vec<f32>,
+}
+
+/// Stage 5: packs a tile's window (mirror-padded past the image edge) into planes, the aux
+/// planes in the order of the model's `temc.aux_layout`.
+fn pack_tile(
+    win: crate::tile::Rect,
+    (w, h): (usize, usize),
+    src: &Sources,
+    stats: Statistics,
+    hdr: bool,
+    info: &ModelInfo,
+) -> Packed {
+    let n = win.w * win.h;
+    let mut p = Packed {
+        chroma: vec![0f32; 2 * n],
+        luma: vec![0f32; n],
+        aux: vec![0f32; info.aux_channels * n],
+        rgb: vec![0f32; 3 * n],
+        albedo: vec![0f32; 3 * n],
+    };
+    let ldr = |c: [f32; 3]| c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) });
+    for wy in 0..win.h {
+        let y = reflect(win.y + wy, h);
+        for wx in 0..win.w {
+            let x = reflect(win.x + wx, w);
+            let i = wy * win.w + wx;
+            let c = src.color.px(x, y);
+            let c = color::sanitize_rgb(if hdr { c } else { ldr(c) });
+            let e = color::encode(c, stats.exposure);
+            p.chroma[i] = e.hsv[0];
+            p.chroma[n + i] = e.hsv[1];
+            p.luma[i] = e.hsv[2];
+            let a = src
+                .albedo
+                .as_ref()
+                .map_or([0.0; 3], |s| features::albedo(s.px(x, y)));
+            let nm = src
+                .normal
+                .as_ref()
+                .map_or([0.5; 3], |s| features::normal(s.px(x, y)));
+            let d = src
+                .depth
+                .as_ref()
+                .map_or(0.0, |s| features::depth(s.px(x, y)[0], stats.depth_scale));
+            for k in 0..3 {
+                p.rgb[k * n + i] = c[k];
+                p.albedo[k * n + i] = a[k];
+            }
+            let mut plane = 0;
+            for (name, channels) in &info.aux_planes {
+                let v: &[f32] = match name.as_str() {
+                    "albedo" => &a,
+                    "normal" => &nm,
+                    _ => std::slice::from_ref(&d),
+                };
+                for (k, &value) in v.iter().take(*channels).enumerate() {
+                    p.aux[(plane + k) * n + i] = value;
+                }
+                plane += channels;
+            }
+        }
+    }
+    p
+}
+
+/// Stage 6 and 7: the network, then the reconstruction; returns the window's output [3, n].
+fn denoise_tile(model: &Model, p: &Packed, win: crate::tile::Rect, hdr: bool) -> Result<Vec<f32>, Error> {
+    let info = model.info();
+    let filters = model.run(
+        NetInput {
+            chroma: &p.chroma,
+            luma: &p.luma,
+            aux: &p.aux,
+        },
+        win.h,
+        win.w,
+    )?;
+    let params = reconstruct::Params {
+        levels: info.levels,
+        kernel: info.kernel,
+        demodulate: info.demodulate,
+        eps: info.demod_eps,
+        ldr: !hdr,
+    };
+    let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
+    let albedo = info.demodulate.then_some(p.albedo.as_slice());
+    reconstruct::reconstruct(&params, &p.rgb, albedo, &refs, win.h, win.w)
+}
+
+/// Runs the job. With an "output" image the result is written there and `None` returned;
+/// without one, the packed RGB result is returned instead.
+pub(super) fn run(
+    job: Job<'_>,
+    pool: &rayon::ThreadPool,
+    monitor: Option<&mut Monitor<'_>>,
+) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
+    let model = job.model.as_ref();
+    let info = model.info();
+    let (w, h) = validate(&job.images)?;
+    let src = snapshot(&job.images)?;
+    let stats = image_statistics(&job, &src, info)?;
+    let threads = pool.current_num_threads().max(1);
+    let (plan, estimated_peak) = plan(&job, (w, h), src.snapshot_bytes, threads)?;
+    let (tw, th) = plan.window;
     if job.verbose > 0 {
         eprintln!(
-            "temc: {w}x{h}, {} tile(s) of {tw}x{th} (cost x{:.2}), {threads} thread(s), input scale {input_scale}, ~{:.0} MB",
+            "temc: {w}x{h}, {} tile(s) of {tw}x{th} (cost x{:.2}), {threads} thread(s), input scale {}, ~{:.0} MB",
             plan.tiles.len(),
             plan.cost_ratio(),
+            stats.exposure.input_scale(),
             estimated_peak / 1e6
         );
     }
@@ -209,72 +364,25 @@ pub(super) fn run(
     let stop = AtomicBool::new(false);
     let monitor = monitor.map(Mutex::new);
     let n_tiles = plan.tiles.len();
-    let hdr = job.hdr;
 
     let run_tile = |tile: &Tile| -> Result<(), Error> {
         if stop.load(Ordering::Relaxed) {
             return Err(Error::Cancelled);
         }
         let win = tile.window;
+        let packed = pack_tile(win, (w, h), &src, stats, job.hdr, info);
+        let out = denoise_tile(model, &packed, win, job.hdr)?;
         let n = win.w * win.h;
-        let mut chroma = vec![0f32; 2 * n];
-        let mut luma = vec![0f32; n];
-        let mut aux = vec![0f32; 7 * n];
-        let mut excess = vec![1f32; n];
-        for wy in 0..win.h {
-            let y = reflect(win.y + wy, h);
-            for wx in 0..win.w {
-                let x = reflect(win.x + wx, w);
-                let i = wy * win.w + wx;
-                let mut c = color.px(x, y);
-                if !hdr {
-                    c = ldr(c);
-                }
-                let e = color::encode(c, exposure);
-                chroma[i] = e.hsv[0];
-                chroma[n + i] = e.hsv[1];
-                luma[i] = e.hsv[2];
-                excess[i] = e.excess;
-                let a = albedo
-                    .as_ref()
-                    .map_or([0.0; 3], |s| features::albedo(s.px(x, y)));
-                let nm = normal
-                    .as_ref()
-                    .map_or([0.5; 3], |s| features::normal(s.px(x, y)));
-                let d = depth
-                    .as_ref()
-                    .map_or(0.0, |s| features::depth(s.px(x, y)[0], depth_scale));
-                for k in 0..3 {
-                    aux[k * n + i] = a[k];
-                    aux[(3 + k) * n + i] = nm[k];
-                }
-                aux[6 * n + i] = d;
-            }
-        }
-        let hsv = model.run(
-            NetInput {
-                chroma: &chroma,
-                luma: &luma,
-                aux: &aux,
-            },
-            win.h,
-            win.w,
-        )?;
         let core = tile.core;
         for y in core.y..core.y + core.h {
             for x in core.x..core.x + core.w {
                 let i = (y - win.y) * win.w + (x - win.x);
-                let mut rgb =
-                    color::decode([hsv[i], hsv[n + i], hsv[2 * n + i]], excess[i], exposure);
-                if !hdr {
-                    rgb = ldr(rgb);
-                }
                 let o = (y * w + x) * 3;
                 // SAFETY: cores partition the image, so no two tiles write the same pixel,
                 // and `o + 2 < w * h * 3`.
                 unsafe {
-                    for (k, v) in rgb.into_iter().enumerate() {
-                        *out_ptr.get().add(o + k) = v;
+                    for k in 0..3 {
+                        *out_ptr.get().add(o + k) = out[k * n + i];
                     }
                 }
             }
@@ -298,14 +406,21 @@ pub(super) fn run(
         tiles: n_tiles,
         window: plan.window,
         cost_ratio: plan.cost_ratio(),
-        input_scale,
+        input_scale: stats.exposure.input_scale(),
         threads,
         estimated_peak_bytes: estimated_peak,
     };
-    let Some(output) = output else {
-        return Ok((stats, Some(staged)));
-    };
-    // Every tile succeeded: now, and only now, write the caller's output.
+    match job.images[ImageName::Output as usize] {
+        None => Ok((stats, Some(staged))),
+        Some(output) => {
+            write_output(&output, &staged, (w, h));
+            Ok((stats, None))
+        }
+    }
+}
+
+/// Stage 8: every tile succeeded; now, and only now, the caller's output is written.
+fn write_output(output: &RawImage, staged: &[f32], (w, h): (usize, usize)) {
     let layout: Layout = output.layout;
     for y in 0..h {
         for x in 0..w {
@@ -322,7 +437,6 @@ pub(super) fn run(
             };
         }
     }
-    Ok((stats, None))
 }
 
 #[cfg(test)]

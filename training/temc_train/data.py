@@ -15,8 +15,11 @@ training sample follows the paper's recipe where it fits:
   0, zero normal, depth 0), with `p_albedo_only` albedo without normal and depth, else
   everything. One model then serves the three input sets.
 
-The network's inputs and target are the core's encoding (`color.py`, the same numbers as
-`src/color`): chroma (H, S), luma (V) and aux [7], and the reference's HSV.
+The network's inputs are the core's encoding (`color.py`, the same numbers as
+`src/color`): chroma (H, S), luma (V) and aux [7]. What the reconstruction filters and the
+loss compares is linear: the sanitised noisy radiance, the albedo feature (for
+demodulation) and the reference, noisy and reference both times the sample's exposure, so
+that the loss's PQ encoding sees the luminances the network saw.
 """
 
 import json
@@ -122,6 +125,18 @@ def load_split(root: str, split: str) -> list:
     return [Scene(root, r) for r in m["scenes"] if r["split"] == split]
 
 
+def refresh_split(root: str, split: str, scenes: list) -> list:
+    """`scenes` plus the split's scenes finished since they were loaded: a run started while
+    the data set still renders trains on every scene as it lands."""
+    with open(os.path.join(root, "manifest.json")) as f:
+        m = json.load(f)
+    have = {s.name for s in scenes}
+    new = [Scene(root, r) for r in m["scenes"] if r["split"] == split and r["name"] not in have]
+    if new:
+        print(f"{len(new)} new {split} scene(s), {len(scenes) + len(new)} in all", flush=True)
+    return scenes + new
+
+
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
     q *= np.sign(np.diag(r))
@@ -150,7 +165,9 @@ def _transform_normal(n: np.ndarray, flip: bool, k: int) -> np.ndarray:
 def make_sample(scene: Scene, rng: np.random.Generator, crop: int = CROP, spp_index=None,
                 augment: bool = True, aux_mode: str = "random", p_color_only: float = 0.2,
                 p_albedo_only: float = 0.2, origin=None):
-    """(chroma [2,c,c], luma [1,c,c], aux [7,c,c], target [3,c,c]) float32 for one crop."""
+    """(chroma [2,c,c], luma [1,c,c], aux [7,c,c], noisy [3,c,c], albedo [3,c,c],
+    reference [3,c,c]) float32 for one crop; noisy and reference are linear, times the
+    exposure."""
     h, w = scene.shape
     c = min(crop, h, w)
     s = int(rng.integers(len(scene.spp))) if spp_index is None else spp_index
@@ -182,18 +199,19 @@ def make_sample(scene: Scene, rng: np.random.Generator, crop: int = CROP, spp_in
     if mode == "none":
         alb = np.zeros_like(alb)
     hsv, _ = color.encode(np.ascontiguousarray(noisy), scale)
-    target, _ = color.encode(np.ascontiguousarray(ref), scale)
-    aux = np.concatenate([np.moveaxis(color.albedo(alb), -1, 0),
+    k = np.float32(scale)
+    lin = lambda x: np.moveaxis(color.sanitize_rgb(np.ascontiguousarray(x)), -1, 0) * k  # noqa: E731
+    albedo = np.moveaxis(color.albedo(alb), -1, 0)
+    aux = np.concatenate([albedo,
                           np.moveaxis(color.normal(nrm), -1, 0),
                           np.asarray(dep, np.float32)[None]])
     hsv = np.moveaxis(hsv, -1, 0)
-    return (np.ascontiguousarray(hsv[:2]), np.ascontiguousarray(hsv[2:3]),
-            np.ascontiguousarray(aux, dtype=np.float32),
-            np.ascontiguousarray(np.moveaxis(target, -1, 0)))
+    f32 = lambda x: np.ascontiguousarray(x, dtype=np.float32)  # noqa: E731
+    return (f32(hsv[:2]), f32(hsv[2:3]), f32(aux), f32(lin(noisy)), f32(albedo), f32(lin(ref)))
 
 
 def batch(scenes: list, rng: np.random.Generator, n: int, crop: int = CROP, **kw):
-    """A training batch as four stacked arrays."""
+    """A training batch as six stacked arrays (make_sample's)."""
     items = [make_sample(scenes[int(rng.integers(len(scenes)))], rng, crop, **kw) for _ in range(n)]
     return [np.stack(x) for x in zip(*items)]
 

@@ -8,6 +8,7 @@ Metrics (all against the reference render):
   exposure): perceptually even steps, so errors in shadows and highlights weigh alike.
 - Delta E ITP (ITU-R BT.2124): ICtCp from the PQ-encoded Rec.2020 LMS, at 100 cd/m^2 per
   unit after the automatic exposure; the chroma error the paper's colour split targets.
+- mean/ref: the image's mean over the reference's mean (energy kept: 1).
 """
 
 import json
@@ -81,8 +82,13 @@ def delta_e_itp(x, r):
     return float(np.mean(720 * np.sqrt((i1 - i2) ** 2 + (0.5 * (t1 - t2)) ** 2 + (p1 - p2) ** 2)))
 
 
+def mean_ratio(x, r):
+    """The image's mean over the reference's: a denoiser must keep it (1.0)."""
+    return float(np.mean(x, dtype=np.float64) / max(np.mean(r, dtype=np.float64), 1e-30))
+
+
 METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim_pq,
-           "dE-ITP": delta_e_itp}
+           "dE-ITP": delta_e_itp, "mean/ref": mean_ratio}
 
 
 def all_metrics(x, r) -> dict:

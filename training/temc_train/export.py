@@ -7,7 +7,8 @@
 The first form writes one model with random weights (benchmarks use this), the second a
 trained one (see load_checkpoint). The third writes the untrained test models of every
 architecture and their golden input/output tensors for the Rust parity tests
-(docs/contracts.md §3)."""
+(docs/contracts.md §3). The graph's outputs are the filter logits `filters0` ..
+`filters{L-1}` (docs/reconstruction.md); the reconstruction itself runs in the core."""
 
 import argparse
 import os
@@ -19,7 +20,7 @@ import torch
 from torch import nn
 
 from . import color, fuse, receptive
-from .models import ALIGNMENT, ARCHS, AUX, CHROMA, LUMA, build
+from .models import ALIGNMENT, ARCHS, AUX, CHROMA, KERNEL, LEVELS, LUMA, SPLITS, build
 
 OPSET = 17
 INPUTS = ("chroma", "luma", "aux")
@@ -34,16 +35,36 @@ def example_inputs(h: int, w: int, seed: int = 0, batch: int = 1) -> list:
     return [torch.rand(batch, c, h, w, generator=g) for c in CHANNELS]
 
 
-def metadata(arch: str, width: float, dataset: str = "none", steps: int = 0,
-             test_relmse=None, description: str = "") -> dict:
-    """The contract's metadata_props (docs/contracts.md §2), all values strings."""
+def output_names(levels: int) -> list:
+    return [f"filters{l}" for l in range(levels)]
+
+
+def recon_of(model) -> dict:
+    """The reconstruction settings a model was built for (demodulation defaults off)."""
+    return {"levels": model.levels, "kernel": model.kernel, "split": model.split,
+            "demodulate": bool(getattr(model, "demodulate", False)),
+            "eps": float(getattr(model, "eps", 0.01))}
+
+
+def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
+             test_relmse=None, description: str = "", tile_overlap=None) -> dict:
+    """The contract's metadata_props (docs/contracts.md §2), all values strings.
+    `tile_overlap` is the measured one (receptive.effective_overlap) for trained models; by
+    default the theoretical bound (network receptive field plus reconstruction reach)."""
+    if tile_overlap is None:
+        tile_overlap = receptive.tile_overlap(arch, recon["levels"], recon["kernel"])
     return {
-        "temc.format": "1",
+        "temc.format": "2",
         "temc.architecture": arch,
         "temc.width": repr(float(width)),
         "temc.alignment": str(ALIGNMENT),
         "temc.receptive_field": str(receptive.receptive_field(arch)),
-        "temc.tile_overlap": str(receptive.tile_overlap(arch)),
+        "temc.tile_overlap": str(int(tile_overlap)),
+        "temc.levels": str(recon["levels"]),
+        "temc.kernel": str(recon["kernel"]),
+        "temc.split": recon["split"],
+        "temc.demodulate": "1" if recon["demodulate"] else "0",
+        "temc.demod_eps": repr(float(recon["eps"])),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",
@@ -62,18 +83,13 @@ class _Wrapper(nn.Module):
         self.model = model
 
     def forward(self, chroma, luma, aux):
-        return self.model(chroma, luma, aux)
+        return tuple(self.model(chroma, luma, aux))
 
 
-def hsv_max_diff(a: np.ndarray, b: np.ndarray) -> float:
-    """Max abs difference of two [N,3,H,W] HSV outputs, hue (channel 0) taken around the
-    circle and scaled by the larger S: what hue changes in a colour. The hue of a nearly
-    grey pixel is a ratio of two tiny numbers; runtimes may round it differently, and it
-    does not matter."""
-    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    d = np.abs(a - b)
-    d[:, 0] = np.minimum(d[:, 0], 1.0 - d[:, 0]) * np.maximum(a[:, 1], b[:, 1])
-    return float(d.max())
+def max_diff(a: list, b: list) -> float:
+    """Max abs difference over every level's filter logits."""
+    return max(float(np.abs(np.asarray(x, np.float64) - np.asarray(y, np.float64)).max())
+               for x, y in zip(a, b))
 
 
 @torch.no_grad()
@@ -105,9 +121,11 @@ def ort_session(path: str):
     return ort.InferenceSession(path, opts, providers=["CPUExecutionProvider"])
 
 
-def run_ort(path: str, xs: list) -> np.ndarray:
+def run_ort(path: str, xs: list) -> list:
+    """Every level's filter logits, as onnxruntime computes them."""
     sess = ort_session(path)
-    return sess.run(["hsv"], {n: x.numpy() for n, x in zip(INPUTS, xs)})[0]
+    names = [o.name for o in sess.get_outputs()]
+    return sess.run(names, {n: x.numpy() for n, x in zip(INPUTS, xs)})
 
 
 def export(model: nn.Module, path: str, meta: dict, variant: str = "plain",
@@ -124,14 +142,15 @@ def export(model: nn.Module, path: str, meta: dict, variant: str = "plain",
     elif variant != "plain":
         raise ValueError(f"unknown variant {variant!r}")
     meta = dict(meta, **{"temc.export_variant": variant})
+    outs = output_names(model.levels)
     tmp = path + ".tmp"
     with torch.no_grad(), warnings.catch_warnings():
         # The legacy exporter is chosen on purpose (docs/contracts.md §2); it says it is.
         warnings.filterwarnings("ignore", category=DeprecationWarning)
         torch.onnx.export(
             net, tuple(xs), tmp, opset_version=OPSET, dynamo=False,
-            do_constant_folding=True, input_names=list(INPUTS), output_names=["hsv"],
-            dynamic_axes={n: {0: "N", 2: "H", 3: "W"} for n in list(INPUTS) + ["hsv"]},
+            do_constant_folding=True, input_names=list(INPUTS), output_names=outs,
+            dynamic_axes={n: {0: "N", 2: "H", 3: "W"} for n in list(INPUTS) + outs},
         )
     m = onnx.load(tmp)
     del m.metadata_props[:]
@@ -140,9 +159,9 @@ def export(model: nn.Module, path: str, meta: dict, variant: str = "plain",
     onnx.checker.check_model(m)
     onnx.save(m, tmp)
     with torch.no_grad():
-        want = model(*xs).numpy()
+        want = [f.numpy() for f in model(*xs)]
     got = run_ort(tmp, xs)
-    diff = hsv_max_diff(got, want)
+    diff = max_diff(got, want)
     if not diff <= PARITY_TOL:
         os.remove(tmp)
         raise RuntimeError(f"{path}: onnxruntime differs from PyTorch by {diff:.3g}")
@@ -159,7 +178,7 @@ def write_golden(root: str, seed: int = 7) -> None:
         randomize_untrained(model, seed + i)
         name = f"{arch}_w{GOLDEN_WIDTH}"
         path = os.path.join(root, "models", name + ".onnx")
-        meta = metadata(arch, GOLDEN_WIDTH, description=(
+        meta = metadata(arch, GOLDEN_WIDTH, recon_of(model), description=(
             f"untrained {arch} at width {GOLDEN_WIDTH}, random weights (seed {seed + i}); "
             "for parity tests only"))
         diff = export(model, path, meta)
@@ -169,7 +188,8 @@ def write_golden(root: str, seed: int = 7) -> None:
         os.makedirs(gdir, exist_ok=True)
         for n, x in zip(INPUTS, xs):
             np.save(os.path.join(gdir, n + ".npy"), x.numpy().astype("<f4"))
-        np.save(os.path.join(gdir, "hsv.npy"), out.astype("<f4"))
+        for name_l, o in zip(output_names(model.levels), out):
+            np.save(os.path.join(gdir, name_l + ".npy"), o.astype("<f4"))
         print(f"{name}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px")
 
 
@@ -187,13 +207,18 @@ def load_checkpoint(path: str, arch=None, width=None):
         arch = ckpt.get("arch", arch)
         width = ckpt.get("width", width)
         info = {k: ckpt[k] for k in ("dataset", "train_steps", "test_relmse") if k in ckpt}
-        head = ckpt.get("head", "kernel")
+        if "state" in ckpt:  # a training checkpoint (train.py): steps from its state
+            info.setdefault("train_steps", ckpt["state"]["step"])
+        recon = ckpt.get("recon")
     else:
-        state, info, head = ckpt, {}, "kernel"
+        state, info, recon = ckpt, {}, None
     if arch is None or width is None:
         raise ValueError(f"{path}: a bare state_dict needs --arch and --width")
-    model = build(arch, float(width), head)
+    recon = recon or {"levels": LEVELS, "kernel": KERNEL, "split": "both",
+                      "demodulate": False, "eps": 0.01}
+    model = build(arch, float(width), recon["levels"], recon["kernel"], recon["split"])
     model.load_state_dict(state)
+    model.demodulate, model.eps = recon["demodulate"], recon["eps"]
     return model, arch, float(width), info
 
 
@@ -228,9 +253,13 @@ def main() -> None:
         what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
-    meta = metadata(arch, width, dataset=info.get("dataset", "none"),
+    recon = recon_of(model)
+    # Trained weights carry their measured reach; random ones the theoretical bound.
+    overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None
+    meta = metadata(arch, width, recon, dataset=info.get("dataset", "none"),
                     steps=info.get("train_steps", 0), test_relmse=info.get("test_relmse"),
-                    description=a.description if a.description is not None else what)
+                    description=a.description if a.description is not None else what,
+                    tile_overlap=overlap)
     diff = export(model, a.out, meta, variant=a.variant)
     print(f"{a.out}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px, "
           f"overlap {meta['temc.tile_overlap']} px")

@@ -7,13 +7,14 @@ sigma = 0.5, 1, 2, 4, 8 at the same resolution, the luminance term at the larges
 only, contrast-structure terms multiplied over all five, and the L1 term weighted by the
 largest Gaussian. Downsampling MS-SSIM needs images over 160 px a side; this form works on
 the paper's 128x128 crops (and on anything down to 1x1, by replicate padding).
-Computed per channel on [0,1] images (the network's PQ-HSV), then averaged.
+Computed per channel on [0,1] images, then averaged: temc takes it on the PQ R'G'B' of the
+reconstructed linear output (`training_loss`).
 """
 
 import torch
 import torch.nn.functional as F
 
-from .models import hsv_to_rgb
+from . import color
 
 SIGMAS = (0.5, 1.0, 2.0, 4.0, 8.0)
 ALPHA = 0.84
@@ -61,15 +62,21 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     return (alpha * (1 - ms_ssim) + (1 - alpha) * l1).mean()
 
 
-def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> torch.Tensor:
-    """What temc trains on: the paper's mix loss on the R'G'B' of the network's HSV output
-    (the core's inverse, before PQ decoding).
+def pq(rgb: torch.Tensor, nits_per_unit: float = color.NITS_PER_UNIT) -> torch.Tensor:
+    """Linear values (already times the exposure) -> PQ code values in [0, 1], as the core
+    encodes them (contract §1 steps 3-5; values past 10000 cd/m2 clip). The floor keeps the
+    gradient of y^m1 finite at black."""
+    y = torch.clamp(rgb * (nits_per_unit / color.PQ_MAX_NITS), 1e-10, 1.0)
+    ym = y ** color.M1
+    return ((color.C1 + color.C2 * ym) / (1.0 + color.C3 * ym)) ** color.M2
 
-    Not on H, S, V themselves: L1 on H calls the reds on either side of the wrap (H near 0
-    and near 1) opposites, and a network trained that way answers red with the hue between
-    them (yellow, green). Not on the chroma plane (S cos 2piH, S sin 2piH) either, which we
-    tried next: there MS-SSIM's contrast term rewards a low-variance prediction, and
-    shrinking S shrinks every chroma variance at once; the networks learned to desaturate
-    (cornell-spiky's walls at S 0.17 against 0.34). In R'G'B' hue wraps, the hue of grey
-    weighs nothing, and desaturating moves every channel's mean."""
-    return mix_loss(hsv_to_rgb(pred), hsv_to_rgb(target), alpha)
+
+def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> torch.Tensor:
+    """What temc trains on: the paper's mix loss on PQ R'G'B' of the reconstructed linear
+    output against the reference's (both [N,3,H,W], linear, times the exposure).
+
+    On R'G'B', not on H, S, V: L1 on H calls the reds on either side of the wrap opposites
+    (a network trained that way answered red with yellow), and on the chroma plane
+    MS-SSIM's contrast term rewarded desaturation. On PQ, not linear values: PQ spaces
+    errors as the eye sees them, so dark regions count and highlights do not dominate."""
+    return mix_loss(pq(pred), pq(target), alpha)

@@ -21,10 +21,12 @@ import functools
 import math
 from typing import NamedTuple
 
+import numpy as np
 import torch
 from torch import nn
 
 from .models import ALIGNMENT, AUX, CHROMA, LUMA, build
+from .reconstruct import reach
 
 # Narrow and fast; the receptive field does not depend on the width.
 WIDTH = 0.0625
@@ -63,15 +65,13 @@ def measure(arch: str) -> Reach:
     period = 512  # room for each footprint; doubled if one reaches its segment's edge
     while True:
         w = ALIGNMENT * period
-        # Random, not zero, inputs: the kernel head multiplies the predicted weights by the
-        # input, so at zero input the weights' paths would carry no gradient.
         g = torch.Generator().manual_seed(0)
         xs = [torch.rand(1, c, STRIP_H, w, generator=g, dtype=torch.float64).requires_grad_()
               for c in (CHROMA, LUMA, AUX)]
         # Output pixel k sits in the middle of segment k, at phase k of the pooling grid.
         centres = [k * period + period // 2 + k for k in range(ALIGNMENT)]
         with torch.enable_grad():
-            model(*xs)[0, :, STRIP_H // 2, centres].sum().backward()
+            model(*xs)[0][0, :, STRIP_H // 2, centres].sum().backward()
         hit = torch.zeros(w, dtype=torch.bool)
         for x in xs:
             hit |= (x.grad[0] != 0).any(dim=0).any(dim=0)
@@ -92,10 +92,56 @@ def receptive_field(arch: str) -> int:
     return measure(arch).extent
 
 
-def tile_overlap(arch: str) -> int:
-    """Half the receptive field rounded up to the alignment; never less than the one-sided
-    reach (footprints are not centred on their pixel), which the rounding covers for all
-    four architectures today."""
+def tile_overlap(arch: str, levels: int, kernel: int) -> int:
+    """The theoretical overlap: the network's one-sided reach (at least half its receptive
+    field: footprints are not centred on their pixel) plus the reconstruction's reach, plus
+    the coarsest level's block (a coarse filter pixel covers 2^(L-1) pixels), rounded up to
+    the alignment. An upper bound; trained models carry the measured effective_overlap."""
     r = measure(arch)
-    need = max(math.ceil(r.extent / 2), r.reach)
+    need = max(math.ceil(r.extent / 2), r.reach) + reach(levels, kernel) + 2 ** (levels - 1)
     return int(math.ceil(need / ALIGNMENT) * ALIGNMENT)
+
+
+EFFECT_TOL = 1e-4  # issue 14: an impulse's effect below this fraction of its size is "none"
+
+
+@torch.no_grad()
+def effective_reach(model: nn.Module, recon: dict, size: int = 256, seed: int = 0) -> int:
+    """The measured effective receptive field of network + reconstruction, in pixels from the
+    impulse: the largest Chebyshev distance at which adding a unit impulse (of the image's
+    mean size) to one noisy pixel changes any output channel by more than EFFECT_TOL of
+    the impulse. Taken on a noisy grey image with random aux (the worst of four impulse
+    positions, one per pooling phase class), through the full pipeline of the core."""
+    g = np.random.default_rng(seed)
+    base = (0.18 * g.gamma(2.0, 0.5, size=(size, size, 3))).astype(np.float32)
+    aux = torch.from_numpy(g.random((1, AUX, size, size), dtype=np.float32))
+    worst = 0
+    for k, (cy, cx) in enumerate([(size // 2, size // 2), (size // 2 + 5, size // 2 + 11),
+                                  (size // 2 + 16, size // 2 - 7), (size // 2 - 3, size // 2 + 1)]):
+        outs = []
+        for bump in (0.0, 1.0):
+            img = base.copy()
+            img[cy, cx] += bump * 0.18
+            outs.append(_denoise(model, recon, img, aux))
+        d = (outs[1] - outs[0]).abs().amax(dim=1)[0] / 0.18
+        ys, xs = torch.nonzero(d > EFFECT_TOL, as_tuple=True)
+        if len(ys):
+            worst = max(worst, int(torch.maximum((ys - cy).abs(), (xs - cx).abs()).max()))
+    return worst
+
+
+def _denoise(model, recon, img: np.ndarray, aux: torch.Tensor) -> torch.Tensor:
+    from . import color
+    from .reconstruct import reconstruct
+
+    hsv, _ = color.encode(img, 1.0)
+    hsv = torch.from_numpy(np.moveaxis(hsv, -1, 0)[None].copy())
+    rgb = torch.from_numpy(np.moveaxis(color.sanitize_rgb(img), -1, 0)[None].astype(np.float32).copy())
+    filters = model.eval()(hsv[:, :2], hsv[:, 2:], aux)
+    return reconstruct(rgb, aux[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"])
+
+
+def effective_overlap(model: nn.Module, recon: dict) -> int:
+    """The tile overlap from the measured effective reach, rounded up to the alignment."""
+    r = effective_reach(model, recon)
+    return int(max(ALIGNMENT, math.ceil(r / ALIGNMENT) * ALIGNMENT))

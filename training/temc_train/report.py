@@ -367,6 +367,18 @@ def main(argv=None):
         block += ["## RelMSE per scene at 16 spp", "",
                   "| denoiser | " + " | ".join(scenes) + " |", "|---|" + "---:|" * len(scenes)]
         block += [f"| {n} | " + " | ".join(f"{err(n, c):.3g}" for c in scenes) + " |" for n in denoisers] + [""]
+    scenes = [r["name"] for r in tests]
+
+    def ratio(n, c, s):
+        return next((r["mean/ref"] for r in rows if r["denoiser"] == n and r["scene"] == c
+                     and r["spp"] == s), float("nan"))
+
+    block += ["## Mean / reference mean per scene", "",
+              "Energy: a denoiser keeps the image's mean (1.000); the noisy input's own ratio is the "
+              "render's noise in the mean.", "",
+              "| denoiser | spp | " + " | ".join(scenes) + " |", "|---|---:|" + "---:|" * len(scenes)]
+    block += [f"| {n} | {s} | " + " | ".join(f"{ratio(n, c, s):.3f}" for c in scenes) + " |"
+              for n in denoisers for s in spps] + [""]
     md[at:at] = block
     with open(a.out, "w") as f:
         f.write("\n".join(md) + "\n")

@@ -18,7 +18,9 @@ import os
 import numpy as np
 import torch
 
-from .export import INPUTS, example_inputs, export, load_checkpoint, metadata, run_ort
+from . import receptive
+from .export import (INPUTS, example_inputs, export, load_checkpoint, metadata, output_names,
+                     recon_of, run_ort)
 from .models import count_params
 
 # file (under onnx/) -> (run folder, quality mode or None for a baseline)
@@ -33,7 +35,7 @@ SHIPPED = {
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 ARCH_NAMES = {"temc2": "TEMC-2", "temc1": "TEMC-1", "demc": "DEMC", "ae": "AE"}
-METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP")
+METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
 
 
 def label(arch, width):
@@ -59,7 +61,7 @@ def table(measurements, name):
     return {s: {k: float(np.mean(v)) for k, v in d.items()} for s, d in sorted(out.items())}
 
 
-def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts):
+def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, recon, overlap):
     lines = [f"# {file}.onnx: {ARCH_NAMES[arch]} at width {width:g}", ""]
     if mode:
         lines += [f"Quality mode: **{mode}**, built into the library (src/filter/builtin.rs).", ""]
@@ -84,8 +86,13 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts):
         f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, 1 thread "
         f"({hours:.2f} h); validation excluded |",
         "| optimiser | Adam, learning rate 5e-4 (the paper's 1e-4 suits its far longer run) |",
-        "| loss | the paper's L1 + MS-SSIM mix (alpha 0.84), taken on the R'G'B' (PQ RGB) of the HSV output so that hue wraps around (loss.training_loss) |",
-        "| output head | kernel-predicting, not the paper's sigmoid: per-pixel softmax weights over the 5x5 neighbourhood of the noisy R'G'B' (models.py and docs/contracts.md §2 say why) |",
+        "| loss | the paper's L1 + MS-SSIM mix (alpha 0.84), taken on PQ R'G'B' of the reconstructed linear output (loss.training_loss) |",
+        f"| output | filters, not pixels: {recon['levels']} pyramid level(s) of {recon['kernel']}x{recon['kernel']} "
+        f"{'luma and chroma kernels' if recon['split'] == 'both' else 'kernels (one for luma and chroma)'}, "
+        f"demodulation {'on' if recon['demodulate'] else 'off'}, applied by the core to the noisy linear radiance "
+        "(docs/reconstruction.md; models.py says why not the paper's sigmoid) |",
+        f"| tile overlap | {overlap} px, from the measured effective reach of network + reconstruction "
+        "(an impulse's effect below 1e-4 of its size; receptive.effective_overlap) |",
         f"| final validation loss | {float(log[-1]['val_loss']):.4f} (start {float(log[0]['val_loss']):.4f}) |",
         "| inputs | colour; colour + albedo; colour + albedo + normal + depth (one model, trained with random aux dropout) |",
         "",
@@ -118,13 +125,14 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts):
     lines += [
         "## Reproduce", "",
         "```sh",
-        "cargo run --release -p temc-render -- dataset --count 24 --size 256 \\",
-        "    --spp 4,16,64,256 --ref-spp 512 --out data/spectral-v1",
-        "scripts/train-all            # every model on the same budget, resumable",
+        "cargo run --release -p temc-render -- dataset --count 1000 --size 128 \\",
+        "    --spp 4,16,64,256 --ref-spp 512 --ref-prefix-spp 64 --out data/spectral-v2",
+        "scripts/train-all            # every model, resumable from its committed checkpoint",
         "scripts/ship-models          # export, goldens, cards, the accuracy report",
         "```", "",
         "## Limitations", "",
-        "- Trained on a few dozen procedurally generated 256x256 scenes of temc-render; scenes far "
+        "- Trained on procedurally generated scenes of temc-render (the data set was still "
+        "rendering, see the data row); scenes far "
         "from them (textures, hair, volumes, depth of field) are untested.",
         "- The budget is tiny: the model is far from converged (see the training curve in "
         "docs/accuracy-vs-time.md); longer training on a GPU is expected to improve it a lot.",
@@ -157,12 +165,17 @@ def main(argv=None):
                      f"reference {o['ref_spp']} spp")
     for file, (run_name, mode) in SHIPPED.items():
         run = os.path.join(a.runs, run_name)
-        ckpt_path = os.path.join(run, "model.pt")
+        # The committed training checkpoint (train.py): it outlives the session, model.pt
+        # does not.
+        ckpt_path = os.path.join(run, "checkpoint.pt")
         if not os.path.exists(ckpt_path):
             raise SystemExit(f"{ckpt_path}: not trained yet (scripts/train-all)")
         model, arch, width, info = load_checkpoint(ckpt_path)
-        ck = torch.load(ckpt_path, map_location="cpu", weights_only=True)
-        ck["params"] = count_params(model)
+        raw = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        ck = {"train_seconds": raw["state"]["train_s"], "train_steps": raw["state"]["step"],
+              "dataset": raw.get("dataset", "unknown"), "params": count_params(model)}
+        recon = recon_of(model)
+        overlap = receptive.effective_overlap(model, recon)
         test_relmse = None
         if meas:
             t = table(meas, label(arch, width))
@@ -170,8 +183,8 @@ def main(argv=None):
         desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "
                 f"({ck['train_steps']} steps) on temc-render's {ck['dataset']}; a small CPU-trained "
                 "model, not the paper's")
-        meta = metadata(arch, width, dataset=ck["dataset"], steps=ck["train_steps"],
-                        test_relmse=test_relmse, description=desc)
+        meta = metadata(arch, width, recon, dataset=ck["dataset"], steps=ck["train_steps"],
+                        test_relmse=test_relmse, description=desc, tile_overlap=overlap)
         path = os.path.join(a.onnx, file + ".onnx")
         os.makedirs(os.path.dirname(path), exist_ok=True)
         diff = export(model, path, meta)
@@ -183,9 +196,14 @@ def main(argv=None):
         xs = example_inputs(*GOLDEN_SIZE, seed=11)
         for n, x in zip(INPUTS, xs):
             np.save(os.path.join(gdir, n + ".npy"), x.numpy().astype("<f4"))
-        np.save(os.path.join(gdir, "hsv.npy"), run_ort(path, xs).astype("<f4"))
+        for stale in os.listdir(gdir):
+            if stale.startswith(("filters", "hsv")):
+                os.remove(os.path.join(gdir, stale))
+        for n, o in zip(output_names(model.levels), run_ort(path, xs)):
+            np.save(os.path.join(gdir, n + ".npy"), o.astype("<f4"))
         with open(os.path.join(a.onnx, file + ".md"), "w") as f:
-            f.write(card(file, run_name, mode, arch, width, ck, read_log(run), size, meas, data_opts))
+            f.write(card(file, run_name, mode, arch, width, ck, read_log(run), size, meas, data_opts,
+                         recon, overlap))
         print(f"{path}: {size / 2**20:.1f} MiB, onnxruntime vs PyTorch {diff:.1e}, "
               f"{ck['train_steps']} steps", flush=True)
 

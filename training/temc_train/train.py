@@ -14,10 +14,15 @@ validation loss, which is what the accuracy report plots as training time agains
 validation loss. RUN/model.pt is the final checkpoint in the form `export.py --checkpoint`
 reads.
 
-Recipe (the paper's where it fits): Adam, learning rate 1e-4, random 128x128 crops with
-flips and rotations, the L1 + MS-SSIM mix loss (`loss.py`) taken on R'G'B' so that hue
-wraps around (`loss.training_loss`), aux dropout (`data.py`). Ours: the kernel-predicting
-output head (`models.py`, `--head`).
+Recipe (the paper's where it fits): Adam, random 128x128 crops with flips and rotations,
+the L1 + MS-SSIM mix loss (`loss.py`) taken on PQ R'G'B' of the reconstructed output
+(`loss.training_loss`), aux dropout (`data.py`). Ours: the network predicts filters that
+`reconstruct.py` applies to the noisy linear radiance (`--levels`, `--kernel`, `--split`,
+`--demodulate`; docs/reconstruction.md).
+
+The checkpoint is compact enough to commit (issue 15: a run outlives a session): weights
+in float32, Adam's moments in bfloat16, and the moments dropped when the file would pass
+20 MiB (Adam then re-warms on resume).
 """
 
 import argparse
@@ -30,7 +35,10 @@ import torch
 
 from . import data
 from .loss import ALPHA, training_loss
-from .models import ARCHS, HEADS, build, count_params
+from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, count_params
+from .reconstruct import reconstruct
+
+CHECKPOINT_LIMIT = 20 * 2**20
 
 
 def _save(obj, path):
@@ -39,17 +47,46 @@ def _save(obj, path):
     os.replace(tmp, path)
 
 
-def validate(model, val, alpha, batch=8) -> float:
+def recon_settings(a) -> dict:
+    """The reconstruction a run trains for; stored in its checkpoints and exported."""
+    return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
+            "demodulate": bool(a.demodulate), "eps": a.eps}
+
+
+def denoise(model, xs, rs: dict):
+    """Network + reconstruction on a batch of make_sample's arrays (as tensors)."""
+    filters = model(*xs[:3])
+    return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"])
+
+
+def validate(model, val, alpha, rs, batch=8) -> float:
     model.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for i in range(0, len(val[0]), batch):
             xs = [torch.from_numpy(v[i:i + batch]) for v in val]
-            pred = model(*xs[:3])
-            total += float(training_loss(pred, xs[3], alpha)) * len(xs[0])
+            total += float(training_loss(denoise(model, xs, rs), xs[5], alpha)) * len(xs[0])
             n += len(xs[0])
     model.train()
     return total / max(n, 1)
+
+
+def compact_optimizer_state(opt_state: dict) -> dict:
+    """Adam's moments in bfloat16 (float32's range: a squared gradient does not underflow
+    as it would in float16)."""
+    out = {"param_groups": opt_state["param_groups"], "state": {}}
+    for k, v in opt_state["state"].items():
+        out["state"][k] = {n: (t.to(torch.bfloat16) if torch.is_tensor(t) and t.dim() > 0 else t)
+                           for n, t in v.items()}
+    return out
+
+
+def restore_optimizer_state(opt, saved: dict) -> None:
+    state = {"param_groups": saved["param_groups"], "state": {}}
+    for k, v in saved["state"].items():
+        state["state"][k] = {n: (t.float() if torch.is_tensor(t) and t.dim() > 0 else t)
+                             for n, t in v.items()}
+    opt.load_state_dict(state)
 
 
 def train(a) -> dict:
@@ -62,16 +99,18 @@ def train(a) -> dict:
         raise SystemExit(f"{a.data}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
     torch.manual_seed(a.seed)
-    model = build(a.arch, a.width, a.head)
+    rs = recon_settings(a)
+    model = build(a.arch, a.width, a.levels, a.kernel, a.split)
     opt = torch.optim.Adam(model.parameters(), lr=a.lr)
     state = {"step": 0, "train_s": 0.0, "rng": np.random.default_rng(a.seed).bit_generator.state}
     if os.path.exists(ckpt_path):
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        held = (ck["arch"], ck["width"], ck.get("head", "direct"))
-        if held != (a.arch, a.width, a.head):
-            raise SystemExit(f"{ckpt_path} holds {held[0]} at width {held[1]}, head {held[2]}")
+        held = (ck["arch"], ck["width"], ck.get("recon"))
+        if held != (a.arch, a.width, rs):
+            raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
         model.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["opt"])
+        if ck.get("opt") is not None:
+            restore_optimizer_state(opt, ck["opt"])
         state = ck["state"]
         print(f"resuming at step {state['step']}, {state['train_s']:.0f} s trained", flush=True)
     rng = np.random.default_rng()
@@ -88,17 +127,22 @@ def train(a) -> dict:
 
     def checkpoint():
         state["rng"] = rng.bit_generator.state
-        _save({"model": model.state_dict(), "opt": opt.state_dict(), "state": state,
-               "arch": a.arch, "width": a.width, "head": a.head}, ckpt_path)
+        ck = {"model": model.state_dict(), "opt": compact_optimizer_state(opt.state_dict()),
+              "state": state, "arch": a.arch, "width": a.width, "recon": rs,
+              "dataset": os.path.basename(os.path.normpath(a.data))}
+        _save(ck, ckpt_path)
+        if os.path.getsize(ckpt_path) > CHECKPOINT_LIMIT:
+            ck["opt"] = None
+            _save(ck, ckpt_path)
 
     if state["step"] == 0:
-        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha):.6f}"])
+        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs):.6f}"])
         log.flush()
     model.train()
     while state["train_s"] < budget and state["step"] < a.max_steps:
         t0 = time.process_time()
         xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
-        loss = training_loss(model(*xs[:3]), xs[3], a.alpha)
+        loss = training_loss(denoise(model, xs, rs), xs[5], a.alpha)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -109,7 +153,8 @@ def train(a) -> dict:
         now = time.monotonic()
         done = state["train_s"] >= budget or state["step"] >= a.max_steps
         if now - last_val >= a.val_minutes * 60 or done:
-            v = validate(model, val, a.alpha)
+            v = validate(model, val, a.alpha, rs)
+            train_scenes = data.refresh_split(a.data, "train", train_scenes)
             w.writerow([state["step"], f"{state['train_s']:.1f}", f"{ema:.6f}", f"{v:.6f}"])
             log.flush()
             print(f"step {state['step']}  {state['train_s']:.0f}/{budget:.0f} s  "
@@ -120,7 +165,7 @@ def train(a) -> dict:
             last_save = time.monotonic()
     checkpoint()
     log.close()
-    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width, "head": a.head,
+    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width, "recon": rs,
              "dataset": os.path.basename(os.path.normpath(a.data)),
              "train_steps": state["step"], "train_seconds": state["train_s"],
              "params": count_params(model)}
@@ -133,8 +178,13 @@ def main(argv=None):
     ap.add_argument("--data", required=True, help="a temc-render dataset folder")
     ap.add_argument("--arch", choices=ARCHS, required=True)
     ap.add_argument("--width", type=float, required=True)
-    ap.add_argument("--head", choices=HEADS, default="kernel",
-                    help="output head (models.py): kernel (ours, default) or direct (the paper's)")
+    ap.add_argument("--levels", type=int, default=LEVELS, help="pyramid levels of the reconstruction")
+    ap.add_argument("--kernel", type=int, default=KERNEL, help="taps per side of each level's kernel")
+    ap.add_argument("--split", choices=SPLITS, default="both",
+                    help="both: separate luma and chroma filters; one: a single filter")
+    ap.add_argument("--demodulate", type=int, choices=(0, 1), default=0,
+                    help="filter radiance / (albedo + eps) and multiply back")
+    ap.add_argument("--eps", type=float, default=0.01, help="demodulation's epsilon")
     ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
     ap.add_argument("--hours", type=float, default=1.0,
                     help="training budget in CPU hours spent in steps")

@@ -73,20 +73,24 @@ def test_samples_have_the_network_shapes_and_ranges(dataset):
     scenes = data.load_split(dataset, "train")
     assert len(scenes) == 2 and scenes[0].spp == [1, 4]
     rng = np.random.default_rng(0)
-    chroma, luma, aux, target = data.batch(scenes, rng, 3, crop=16)
+    chroma, luma, aux, noisy, albedo, target = data.batch(scenes, rng, 3, crop=16)
     assert chroma.shape == (3, 2, 16, 16) and luma.shape == (3, 1, 16, 16)
-    assert aux.shape == (3, 7, 16, 16) and target.shape == (3, 3, 16, 16)
-    for x in (chroma, luma, aux, target):
-        assert x.dtype == np.float32 and np.isfinite(x).all()
-        assert x.min() >= 0 and x.max() <= 1
+    assert aux.shape == (3, 7, 16, 16)
+    assert noisy.shape == albedo.shape == target.shape == (3, 3, 16, 16)
+    for x in (chroma, luma, aux, noisy, albedo, target):
+        assert x.dtype == np.float32 and np.isfinite(x).all() and x.min() >= 0
+    for x in (chroma, luma, aux, albedo):
+        assert x.max() <= 1
+    # The albedo the reconstruction demodulates by is the network's albedo input.
+    assert np.array_equal(albedo, aux[:, :3])
 
 
 def test_aux_dropout_uses_the_contract_fill(dataset):
     sc = data.load_split(dataset, "train")[0]
     rng = np.random.default_rng(0)
-    _, _, aux, _ = data.make_sample(sc, rng, 16, aux_mode="none")
+    _, _, aux, *_ = data.make_sample(sc, rng, 16, aux_mode="none")
     assert (aux[:3] == 0).all() and np.allclose(aux[3:6], 0.5) and (aux[6] == 0).all()
-    _, _, aux, _ = data.make_sample(sc, rng, 16, aux_mode="albedo")
+    _, _, aux, *_ = data.make_sample(sc, rng, 16, aux_mode="albedo")
     assert aux[:3].max() > 0 and np.allclose(aux[3:6], 0.5)
 
 

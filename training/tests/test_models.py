@@ -1,9 +1,7 @@
 import pytest
 import torch
 
-from temc_train import color
-from temc_train.models import (ARCHS, KERNEL, AENet, DEMCNet, build, count_params, hsv_to_rgb,
-                               rgb_to_hsv)
+from temc_train.models import ARCHS, KERNEL, LEVELS, build, count_params, filter_channels
 
 # Parameter counts at width 1.0, from ../shared/reference/temc-architecture.md:
 # (conv/deconv weights and biases, batch-norm gamma/beta).
@@ -20,67 +18,73 @@ EXPECTED = {
 }
 
 
-@pytest.mark.parametrize("arch", ARCHS)
-def test_parameter_counts_match_the_architecture_note(arch):
-    # The note counts the paper's (direct, sigmoid) head.
-    assert count_params(build(arch, 1.0, "direct")) == EXPECTED[arch]
+# Our output (models.py): the paper's last 3x3 conv (cin -> cout) is replaced by one 1x1
+# filter head per pyramid level over the decoder's features at that level.
+PAPER_LAST = {"ae": [(32, 3)], "demc": [(64, 3)], "temc2": [(64, 3)], "temc1": [(64, 2), (32, 1)]}
+N = KERNEL * KERNEL
+HEADS = {  # (decoder widths at levels 0, 1, 2, channels per level) per network
+    "ae": [((32, 64, 88), 2 * N + 2)],
+    "demc": [((64, 128, 256), 2 * N + 2)],
+    "temc2": [((64, 128, 256), 2 * N + 2)],
+    "temc1": [((64, 128, 256), N + 1), ((32, 64, 88), N + 1)],
+}
 
 
 @pytest.mark.parametrize("arch", ARCHS)
-def test_the_kernel_head_changes_only_the_last_convs(arch):
-    # Each last conv predicts KERNEL^2 weights instead of its 3 (or 2, 1) channels.
-    last = {"ae": [(32, 3)], "demc": [(64, 3)], "temc2": [(64, 3)], "temc1": [(64, 2), (32, 1)]}
-    extra = sum((KERNEL * KERNEL - cout) * (cin * 9 + 1) for cin, cout in last[arch])
-    direct, bn = EXPECTED[arch]
-    assert count_params(build(arch, 1.0, "kernel")) == (direct + extra, bn)
+def test_parameter_counts_match_the_architecture_note_up_to_the_output(arch):
+    paper, bn = EXPECTED[arch]
+    last = sum((cin * 9 + 1) * cout for cin, cout in PAPER_LAST[arch])
+    heads = sum((w + 1) * c for widths, c in HEADS[arch] for w in widths[:LEVELS])
+    assert count_params(build(arch, 1.0)) == (paper - last + heads, bn)
 
 
-def test_building_blocks_match_the_note():
-    # The note's own configurations: AE 1 -> 1, and DEMC on RGB (3 -> 3) with 7 aux channels.
-    assert count_params(AENet(1, 1, 1.0, "direct")) == (1_395_201, 0)
-    assert count_params(DEMCNet(3, 3, 1.0, "direct")) == (44_843_268, 4_224)
-
-
-def test_note_totals():
-    # The note's headline figures.
-    assert round(sum(count_params(build("demc", 1.0, "direct"))) / 1e6, 2) == 44.85
-    assert round(sum(count_params(build("temc2", 1.0, "direct"))) / 1e6, 1) == 64.9
-
-
-def test_an_untrained_kernel_head_is_a_box_filter_that_spares_the_borders():
-    m = build("temc2", 0.0625).eval()
-    hsv = torch.rand(1, 3, 32, 32)
-    with torch.no_grad():
-        y = m(hsv[:, :2], hsv[:, 2:], torch.rand(1, 7, 32, 32))
-    rgb = hsv_to_rgb(hsv)
-    # Pixel (0, 0) averages the 3x3 taps inside the image; (10, 10) all 25.
-    assert torch.allclose(hsv_to_rgb(y)[0, :, 0, 0], rgb[0, :, :3, :3].mean(dim=(1, 2)), atol=1e-5)
-    assert torch.allclose(hsv_to_rgb(y)[0, :, 10, 10], rgb[0, :, 8:13, 8:13].mean(dim=(1, 2)),
-                          atol=1e-5)
-
-
-def test_hsv_conversions_match_the_core():
-    g = torch.Generator().manual_seed(2)
-    rgb = torch.rand(1, 3, 8, 8, generator=g)
-    rgb[0, :, 0, 0] = 0.5  # grey
-    rgb[0, :, 0, 1] = 0.0  # black
-    want = color.rgb_to_hsv(rgb[0].permute(1, 2, 0).numpy())
-    got = rgb_to_hsv(rgb)[0].permute(1, 2, 0).numpy()
-    assert abs(got - want).max() < 1e-6
-    assert torch.allclose(hsv_to_rgb(rgb_to_hsv(rgb)), rgb, atol=1e-6)
+def test_note_totals_without_the_output():
+    # The note's headline figures hold for the encoders and decoder (the output heads are
+    # ours): 44.85 M for DEMC, 64.9 M for TEMC-2.
+    for arch, total in (("demc", 44.85), ("temc2", 64.9)):
+        m = build(arch, 1.0)
+        heads = sum(p.numel() for n, p in m.named_parameters() if ".heads." in n)
+        last = (64 * 9 + 1) * 3
+        assert round((sum(count_params(m)) - heads + last) / 1e6, 2 if arch == "demc" else 1) == total
 
 
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize("size", [(32, 32), (64, 96)])
-def test_output_shape_and_range(arch, size):
+def test_outputs_are_filters_per_level(arch, size):
     torch.manual_seed(0)
     m = build(arch, 0.0625).eval()
     h, w = size
     xs = [torch.rand(2, c, h, w) for c in (2, 1, 7)]
     with torch.no_grad():
-        y = m(*xs)
-    assert y.shape == (2, 3, h, w)
-    assert torch.all((y >= 0) & (y <= 1))
+        ys = m(*xs)
+    assert [tuple(y.shape) for y in ys] == [(2, filter_channels(), h >> l, w >> l)
+                                            for l in range(LEVELS)]
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_an_untrained_network_predicts_box_filters(arch):
+    # Zero heads: every logit 0, so every level is a box filter and every blend 1/2.
+    m = build(arch, 0.0625).eval()
+    with torch.no_grad():
+        ys = m(torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32))
+    assert all(torch.equal(y, torch.zeros_like(y)) for y in ys)
+
+
+def test_one_filter_shares_luma_and_chroma():
+    torch.manual_seed(0)
+    m = build("temc2", 0.0625, split="one").eval()
+    for p in m.decoder.heads.parameters():
+        torch.nn.init.normal_(p)
+    with torch.no_grad():
+        y = m(torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32))[0]
+    assert torch.equal(y[:, :N], y[:, N:2 * N]) and torch.equal(y[:, 2 * N], y[:, 2 * N + 1])
+
+
+def test_levels_and_kernel_are_parameters():
+    m = build("temc2", 0.0625, levels=1, kernel=3).eval()
+    with torch.no_grad():
+        ys = m(torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32))
+    assert [tuple(y.shape) for y in ys] == [(1, filter_channels(3), 32, 32)]
 
 
 def test_width_scales_parameters_roughly_quadratically():
@@ -90,20 +94,27 @@ def test_width_scales_parameters_roughly_quadratically():
 
 
 def test_temc1_branches_are_independent():
-    # With the paper's head, V comes only from the luma autoencoder, (H, S) only from the
-    # chroma DEMC. (The kernel head filters all of R'G'B' in each branch.)
+    # V's branch (the luma autoencoder) predicts the luma filters, the chroma DEMC the chroma
+    # filters: the chroma filters do not change when only V does.
     torch.manual_seed(0)
-    m = build("temc1", 0.0625, "direct").eval()
+    m = build("temc1", 0.0625).eval()
+    for name, p in m.named_parameters():
+        if ".heads." in name:
+            torch.nn.init.normal_(p)
     c, l, a = torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32)
     with torch.no_grad():
-        y0 = m(c, l, a)
-        y1 = m(c, torch.rand(1, 1, 32, 32), a)
-    assert torch.equal(y0[:, :2], y1[:, :2])
-    assert not torch.equal(y0[:, 2], y1[:, 2])
+        y0 = m(c, l, a)[0]
+        y1 = m(c, torch.rand(1, 1, 32, 32), a)[0]
+    chroma = list(range(N, 2 * N)) + [2 * N + 1]
+    luma = list(range(N)) + [2 * N]
+    assert torch.equal(y0[:, chroma], y1[:, chroma])
+    assert not torch.equal(y0[:, luma], y1[:, luma])
 
 
-def test_unknown_architecture_and_head():
+def test_unknown_architecture_and_split():
     with pytest.raises(ValueError):
         build("unet", 1.0)
     with pytest.raises(ValueError):
-        build("temc2", 1.0, "residual")
+        build("temc2", 1.0, split="three")
+    with pytest.raises(ValueError):
+        build("temc2", 1.0, kernel=4)

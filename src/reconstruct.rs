@@ -1,0 +1,899 @@
+//! Reconstruction: per-pixel multi-level kernels, predicted by the network, applied to the
+//! noisy linear radiance (docs/reconstruction.md).
+//!
+//! The network outputs logits; this module turns them into normalised luma and chroma
+//! kernels at each pyramid level, filters, composes the levels coarse to fine and
+//! recombines luma and chroma. `training/temc_train/reconstruct.py` is the same function
+//! in PyTorch; `tests/data/recon_vectors.json` (written by the Python side) pins the two
+//! together to 1e-5.
+//!
+//! One call handles one tile window on one thread (tiles run in parallel elsewhere), so the
+//! loops are row-major over contiguous slices, the per-pixel softmax weights of a block of
+//! a row live in one reusable buffer, and `exp` is a branch-free polynomial that LLVM
+//! vectorises (std `expf` is a libm call per tap and dominated the run time).
+
+use crate::color::{LINEAR_MAX, LUMA_WEIGHTS};
+use crate::Error;
+
+/// Logits are clamped to +-this, NaN becomes 0 (docs/reconstruction.md, "Non-finite logits").
+pub const LOGIT_MAX: f32 = 1.0e4;
+
+/// Below this luminance the chroma filter's colour is undefined and the output is grey.
+const MIN_CHROMA_LUMA: f32 = 1.0e-30;
+
+/// The most floats per window pixel that [`reconstruct`] holds besides its inputs and its
+/// [3, H, W] output (for memory budgets): the demodulated copy 3, the level-0 luminance 1,
+/// and fy and fc 4. Coarser levels add a third of the last at most, after the luminance
+/// plane is freed; the per-row weights are k^2 x 128 floats.
+pub const SCRATCH_PLANES: f64 = 8.0;
+
+/// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
+const BLOCK: usize = 128;
+
+/// The model metadata the reconstruction needs (docs/contracts.md §2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    /// Pyramid levels L (`temc.levels`), at least 1.
+    pub levels: usize,
+    /// Kernel size k (`temc.kernel`), odd, the same at every level.
+    pub kernel: usize,
+    /// Filter `rgb / (albedo + eps)` and multiply back afterwards (`temc.demodulate`).
+    pub demodulate: bool,
+    /// Added to the albedo before dividing (`temc.demod_eps`), > 0 when demodulating.
+    pub eps: f32,
+    /// LDR mode: the output is clamped to [0, 1] instead of [0, `LINEAR_MAX`].
+    pub ldr: bool,
+}
+
+/// How far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from the centre:
+/// r (2^L - 1) + 2^(L-1) - 1 with r = kernel / 2. The tile overlap must cover it.
+pub fn reach(levels: usize, kernel: usize) -> usize {
+    if levels == 0 {
+        return 0;
+    }
+    (kernel / 2) * ((1usize << levels) - 1) + (1usize << (levels - 1)) - 1
+}
+
+/// The logit channels per level for a `kernel` x `kernel` kernel: two kernels, two blends.
+pub fn channels(kernel: usize) -> usize {
+    2 * kernel * kernel + 2
+}
+
+/// Applies the predicted filters to one H x W window; returns the [3, H, W] planar result.
+///
+/// `rgb` and `albedo` are [3, H, W] planar (albedo is read only when demodulating);
+/// `filters[l]` is [2k^2 + 2, H / 2^l, W / 2^l] planar. Every output value is finite and in
+/// [0, `LINEAR_MAX`] (LDR: [0, 1]), whatever the logits hold.
+pub fn reconstruct(
+    p: &Params,
+    rgb: &[f32],
+    albedo: Option<&[f32]>,
+    filters: &[&[f32]],
+    h: usize,
+    w: usize,
+) -> Result<Vec<f32>, Error> {
+    validate(p, rgb, albedo, filters, h, w)?;
+    let hw = h * w;
+    // d = albedo + eps is recomputed in `recombine` rather than kept: 3 planes less.
+    let d = albedo.filter(|_| p.demodulate).map(|a| (a, p.eps));
+    let mut x = rgb.to_vec();
+    if let Some((a, eps)) = d {
+        x.iter_mut().zip(a).for_each(|(v, a)| *v /= a + eps);
+    }
+    let mut scratch = Scratch::new(p.kernel, w);
+    let (mut hl, mut wl) = (h, w);
+    let mut outs = Vec::with_capacity(p.levels);
+    for (l, f) in filters.iter().enumerate() {
+        if l > 0 {
+            x = downsample(&x, 3, hl, wl);
+            (hl, wl) = (hl / 2, wl / 2);
+        }
+        outs.push(filter_level(&x, f, p.kernel, hl, wl, &mut scratch));
+    }
+    let (mut cy, mut cc) = outs.pop().expect("levels >= 1");
+    let k2 = p.kernel * p.kernel;
+    for (l, (mut fy, mut fc)) in outs.into_iter().enumerate().rev() {
+        let (hl, wl) = (h >> l, w >> l);
+        let n = hl * wl;
+        let f = filters[l];
+        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl);
+        for c in 0..3 {
+            let (fine, coarse) = (&mut fc[c * n..][..n], &cc[c * n / 4..][..n / 4]);
+            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl);
+        }
+        (cy, cc) = (fy, fc);
+    }
+    Ok(recombine(&cy, &cc, d, hw, p.ldr))
+}
+
+/// Rejects every input the loops would index out of bounds or divide by zero with.
+fn validate(
+    p: &Params,
+    rgb: &[f32],
+    albedo: Option<&[f32]>,
+    filters: &[&[f32]],
+    h: usize,
+    w: usize,
+) -> Result<(), Error> {
+    let bad = |m: String| Err(Error::InvalidArgument(format!("reconstruct: {m}")));
+    if p.levels == 0 || p.levels > 16 {
+        return bad(format!("levels must be in 1..=16, got {}", p.levels));
+    }
+    if p.kernel.is_multiple_of(2) || p.kernel > 63 {
+        return bad(format!(
+            "kernel must be odd and at most 63, got {}",
+            p.kernel
+        ));
+    }
+    let align = 1usize << (p.levels - 1);
+    if h == 0 || w == 0 || !h.is_multiple_of(align) || !w.is_multiple_of(align) {
+        return bad(format!("{w}x{h} is not a non-empty multiple of {align}"));
+    }
+    let hw = h
+        .checked_mul(w)
+        .filter(|n| n.checked_mul(channels(p.kernel)).is_some());
+    let Some(hw) = hw else {
+        return bad(format!("{w}x{h} is too large"));
+    };
+    if rgb.len() != 3 * hw {
+        return bad(format!("rgb has {} values, expected {}", rgb.len(), 3 * hw));
+    }
+    if p.demodulate {
+        if !(p.eps.is_finite() && p.eps > 0.0) {
+            return bad(format!("eps must be finite and > 0, got {}", p.eps));
+        }
+        match albedo {
+            Some(a) if a.len() == 3 * hw => {}
+            Some(a) => {
+                return bad(format!(
+                    "albedo has {} values, expected {}",
+                    a.len(),
+                    3 * hw
+                ))
+            }
+            None => return bad("demodulation needs an albedo".into()),
+        }
+    }
+    if filters.len() != p.levels {
+        return bad(format!(
+            "{} filter levels, expected {}",
+            filters.len(),
+            p.levels
+        ));
+    }
+    for (l, f) in filters.iter().enumerate() {
+        let want = channels(p.kernel) * (h >> l) * (w >> l);
+        if f.len() != want {
+            return bad(format!(
+                "filters[{l}] has {} values, expected {want}",
+                f.len()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The 2x2 mean of each of `planes` planes of `h` x `w` (D of the spec; keeps the mean).
+fn downsample(x: &[f32], planes: usize, h: usize, w: usize) -> Vec<f32> {
+    let (hc, wc) = (h / 2, w / 2);
+    let mut out = vec![0.0; planes * hc * wc];
+    for (src, dst) in x.chunks_exact(h * w).zip(out.chunks_exact_mut(hc * wc)) {
+        for (rows, drow) in src.chunks_exact(2 * w).zip(dst.chunks_exact_mut(wc)) {
+            let (r0, r1) = rows.split_at(w);
+            for ((o, a), b) in drow
+                .iter_mut()
+                .zip(r0.chunks_exact(2))
+                .zip(r1.chunks_exact(2))
+            {
+                *o = 0.25 * ((a[0] + a[1]) + (b[0] + b[1]));
+            }
+        }
+    }
+    out
+}
+
+/// Reusable per-call buffers: the weights of every tap for one block of one row.
+struct Scratch {
+    k: usize,
+    /// Tap-major: tap t's weights for the block at `t * BLOCK`.
+    weights: Vec<f32>,
+    /// Per pixel of the block: the max logit over the taps inside.
+    max: Vec<f32>,
+    /// Per pixel of the block: 1 / the sum of the weights.
+    norm: Vec<f32>,
+    /// Per pixel of the block: the weighted sum being accumulated.
+    acc: Vec<f32>,
+}
+
+impl Scratch {
+    fn new(k: usize, w: usize) -> Self {
+        let b = BLOCK.min(w);
+        Scratch {
+            k,
+            weights: vec![0.0; k * k * BLOCK],
+            max: vec![0.0; b],
+            norm: vec![0.0; b],
+            acc: vec![0.0; b],
+        }
+    }
+}
+
+/// Tap t = (dy + r) k + (dx + r) of the spec as its offset (dy, dx).
+#[inline(always)]
+fn tap(k: usize, t: usize) -> (isize, isize) {
+    let r = (k / 2) as isize;
+    ((t / k) as isize - r, (t % k) as isize - r)
+}
+
+/// The pixel columns `[x0, x1)` of block `[bx0, bx1)` where tap (dy, dx) lies inside the
+/// `h` x `w` image at row `y`; None when the tap's row is outside or the span is empty.
+#[inline(always)]
+fn span(
+    y: usize,
+    dy: isize,
+    dx: isize,
+    h: usize,
+    w: usize,
+    bx: (usize, usize),
+) -> Option<(usize, usize)> {
+    let yy = y as isize + dy;
+    if yy < 0 || yy >= h as isize {
+        return None;
+    }
+    let x0 = (bx.0 as isize).max(-dx);
+    let x1 = (bx.1 as isize).min(w as isize - dx);
+    (x0 < x1).then_some((x0 as usize, x1 as usize))
+}
+
+/// Filters one level: per pixel, the luma kernel on the level's luminance and the chroma
+/// kernel on its three channels. Returns (fy [H, W], fc [3, H, W]). Runs the AVX2 build
+/// where the CPU has it, else the baseline (SSE2) one.
+fn filter_level(
+    x: &[f32],
+    f: &[f32],
+    k: usize,
+    h: usize,
+    w: usize,
+    s: &mut Scratch,
+) -> (Vec<f32>, Vec<f32>) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2. No FMA: the results are bit-identical to the baseline's.
+        return unsafe { filter_level_avx2(x, f, k, h, w, s) };
+    }
+    filter_level_any(x, f, k, h, w, s)
+}
+
+/// [`filter_level_any`] compiled for AVX2: 8 lanes instead of SSE2's 4 (about 2x faster).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn filter_level_avx2(
+    x: &[f32],
+    f: &[f32],
+    k: usize,
+    h: usize,
+    w: usize,
+    s: &mut Scratch,
+) -> (Vec<f32>, Vec<f32>) {
+    filter_level_any(x, f, k, h, w, s)
+}
+
+/// The body of [`filter_level`], inlined into each instruction-set version.
+#[inline(always)]
+fn filter_level_any(
+    x: &[f32],
+    f: &[f32],
+    k: usize,
+    h: usize,
+    w: usize,
+    s: &mut Scratch,
+) -> (Vec<f32>, Vec<f32>) {
+    let n = h * w;
+    let k2 = k * k;
+    let (r, gb) = x.split_at(n);
+    let (g, b) = gb.split_at(n);
+    let luma: Vec<f32> = r
+        .iter()
+        .zip(g)
+        .zip(b)
+        .map(|((r, g), b)| LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b)
+        .collect();
+    let mut fy = vec![0.0; n];
+    let mut fc = vec![0.0; 3 * n];
+    for y in 0..h {
+        for bx0 in (0..w).step_by(BLOCK) {
+            let bx = (bx0, (bx0 + BLOCK).min(w));
+            let at = y * w + bx0..y * w + bx.1;
+            s.weights_for(&f[..k2 * n], y, h, w, bx);
+            s.apply(&luma, y, h, w, bx, &mut fy[at.clone()]);
+            s.weights_for(&f[k2 * n..2 * k2 * n], y, h, w, bx);
+            for c in 0..3 {
+                let plane = &x[c * n..][..n];
+                s.apply(plane, y, h, w, bx, &mut fc[c * n..][at.clone()]);
+            }
+        }
+    }
+    (fy, fc)
+}
+
+impl Scratch {
+    /// The softmax weights (unnormalised, with 1 / sum in `norm`) of row `y`, block `bx`,
+    /// over the taps inside the image; `apply` reads only those.
+    #[inline(always)]
+    fn weights_for(&mut self, logits: &[f32], y: usize, h: usize, w: usize, bx: (usize, usize)) {
+        let nb = bx.1 - bx.0;
+        let plane = h * w;
+        let max = &mut self.max[..nb];
+        max.fill(f32::NEG_INFINITY);
+        for t in 0..self.k * self.k {
+            let (dy, dx) = tap(self.k, t);
+            let Some((x0, x1)) = span(y, dy, dx, h, w, bx) else {
+                continue;
+            };
+            let wt = &mut self.weights[t * BLOCK..][x0 - bx.0..x1 - bx.0];
+            let src = &logits[t * plane + y * w..][x0..x1];
+            for ((o, &v), m) in wt.iter_mut().zip(src).zip(&mut max[x0 - bx.0..x1 - bx.0]) {
+                let v = clean_logit(v);
+                *o = v;
+                *m = if v > *m { v } else { *m };
+            }
+        }
+        let norm = &mut self.norm[..nb];
+        norm.fill(0.0);
+        for t in 0..self.k * self.k {
+            let (dy, dx) = tap(self.k, t);
+            let Some((x0, x1)) = span(y, dy, dx, h, w, bx) else {
+                continue;
+            };
+            let r = x0 - bx.0..x1 - bx.0;
+            let wt = &mut self.weights[t * BLOCK..][r.clone()];
+            for ((o, m), s) in wt.iter_mut().zip(&max[r.clone()]).zip(&mut norm[r]) {
+                *o = exp_nonpos(*o - m);
+                *s += *o;
+            }
+        }
+        // The max tap has weight exp(0) = 1 and the centre tap is always inside: sum >= 1.
+        norm.iter_mut().for_each(|s| *s = 1.0 / *s);
+    }
+
+    /// `out[x] = sum_t weight_t[x] * plane(y + dy, x + dx)`, normalised, for the block.
+    #[inline(always)]
+    fn apply(
+        &mut self,
+        plane: &[f32],
+        y: usize,
+        h: usize,
+        w: usize,
+        bx: (usize, usize),
+        out: &mut [f32],
+    ) {
+        let acc = &mut self.acc[..bx.1 - bx.0];
+        acc.fill(0.0);
+        for t in 0..self.k * self.k {
+            let (dy, dx) = tap(self.k, t);
+            let Some((x0, x1)) = span(y, dy, dx, h, w, bx) else {
+                continue;
+            };
+            let row = (y as isize + dy) as usize * w;
+            let src = &plane[row + (x0 as isize + dx) as usize..][..x1 - x0];
+            let wt = &self.weights[t * BLOCK..][x0 - bx.0..x1 - bx.0];
+            for ((a, &wv), &v) in acc[x0 - bx.0..x1 - bx.0].iter_mut().zip(wt).zip(src) {
+                *a += wv * v;
+            }
+        }
+        for ((o, a), s) in out.iter_mut().zip(acc.iter()).zip(&self.norm) {
+            *o = a * s;
+        }
+    }
+}
+
+/// In place: `fine += sigmoid(blend) * (U(coarse) - U(D(fine)))` (step 4 of the spec).
+fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize) {
+    let wc = w / 2;
+    let blend: Vec<f32> = blend.iter().map(|&b| sigmoid(b)).collect(); // one vectorised pass
+    for ((rows, brows), crow) in fine
+        .chunks_exact_mut(2 * w)
+        .zip(blend.chunks_exact(2 * w))
+        .zip(coarse.chunks_exact(wc))
+    {
+        let (r0, r1) = rows.split_at_mut(w);
+        let (b0, b1) = brows.split_at(w);
+        let blocks = r0.chunks_exact_mut(2).zip(r1.chunks_exact_mut(2));
+        for (((a, b), (ba, bb)), &c) in blocks
+            .zip(b0.chunks_exact(2).zip(b1.chunks_exact(2)))
+            .zip(crow)
+        {
+            let diff = c - 0.25 * ((a[0] + a[1]) + (b[0] + b[1]));
+            a[0] += ba[0] * diff;
+            a[1] += ba[1] * diff;
+            b[0] += bb[0] * diff;
+            b[1] += bb[1] * diff;
+        }
+    }
+    debug_assert_eq!(fine.len(), h * w);
+}
+
+/// Steps 5-7: the chroma filter's colour at the luma filter's luminance, remodulated,
+/// made finite and clamped.
+fn recombine(cy: &[f32], cc: &[f32], d: Option<(&[f32], f32)>, n: usize, ldr: bool) -> Vec<f32> {
+    let hi = if ldr { 1.0 } else { LINEAR_MAX };
+    let mut out = vec![0.0; 3 * n];
+    let (o0, rest) = out.split_at_mut(n);
+    let (o1, o2) = rest.split_at_mut(n);
+    for i in 0..n {
+        let c = [cc[i].max(0.0), cc[n + i].max(0.0), cc[2 * n + i].max(0.0)];
+        let yc = LUMA_WEIGHTS[0] * c[0] + LUMA_WEIGHTS[1] * c[1] + LUMA_WEIGHTS[2] * c[2];
+        let y = cy[i].max(0.0);
+        let mut v = if yc > MIN_CHROMA_LUMA {
+            let s = y / yc;
+            [c[0] * s, c[1] * s, c[2] * s]
+        } else {
+            [y; 3]
+        };
+        if let Some((a, eps)) = d {
+            (0..3).for_each(|ch| v[ch] *= a[ch * n + i] + eps);
+        }
+        let lim = |v: f32| if v.is_finite() { v.clamp(0.0, hi) } else { 0.0 };
+        (o0[i], o1[i], o2[i]) = (lim(v[0]), lim(v[1]), lim(v[2]));
+    }
+    out
+}
+
+/// NaN -> 0, everything else clamped to +-[`LOGIT_MAX`] (so +-Inf too).
+#[inline(always)]
+fn clean_logit(v: f32) -> f32 {
+    if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(-LOGIT_MAX, LOGIT_MAX)
+    }
+}
+
+/// The logistic function of a cleaned logit, from exp(-|a|) so nothing overflows.
+#[inline(always)]
+fn sigmoid(a: f32) -> f32 {
+    let a = clean_logit(a);
+    let e = exp_nonpos(-a.abs());
+    if a >= 0.0 {
+        1.0 / (1.0 + e)
+    } else {
+        e / (1.0 + e)
+    }
+}
+
+/// e^x for x <= 0 (after the max is subtracted), within 2 ulp; 0 below -87 where f32
+/// underflows. Cephes' expf polynomial with round-to-nearest by the 1.5 * 2^23 trick and
+/// the power of two built from bits: no branches, no libm call, so LLVM vectorises it.
+#[inline(always)]
+fn exp_nonpos(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 * 2^23: adding it rounds to an integer
+    const LN2_HI: f32 = 0.693_359_4;
+    const LN2_LO: f32 = -2.121_944_4e-4;
+    let xc = if x < -87.0 { -87.0 } else { x };
+    let t = xc * std::f32::consts::LOG2_E + MAGIC;
+    let nf = t - MAGIC;
+    let r = xc - nf * LN2_HI - nf * LN2_LO;
+    let mut p = 1.987_569_1e-4_f32;
+    p = p * r + 1.398_199_9e-3;
+    p = p * r + 8.333_452e-3;
+    p = p * r + 4.166_579_6e-2;
+    p = p * r + 1.666_666_5e-1;
+    p = p * r + 0.5; // Cephes' 5.0000001201e-1 rounds to 0.5 in f32
+    let e = p * r * r + r + 1.0;
+    // t's bits are MAGIC's plus n (n in -126..=0 lies in MAGIC's binade).
+    let n = t.to_bits().wrapping_sub(MAGIC.to_bits()) as i32;
+    let scale = f32::from_bits(((n + 127) as u32) << 23);
+    if x < -87.0 {
+        0.0
+    } else {
+        e * scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (xorshift64*): tests need no `rand`.
+    struct Rng(u64);
+
+    impl Rng {
+        fn uniform(&mut self) -> f32 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 / (1u64 << 24) as f32
+        }
+
+        /// Roughly normal with standard deviation `sd` (sum of four uniforms).
+        fn normal(&mut self, sd: f32) -> f32 {
+            let s: f32 = (0..4).map(|_| self.uniform()).sum();
+            (s - 2.0) * sd * 3f32.sqrt()
+        }
+
+        fn vec(&mut self, n: usize, f: impl Fn(&mut Self) -> f32) -> Vec<f32> {
+            (0..n).map(|_| f(self)).collect()
+        }
+    }
+
+    fn params(levels: usize, kernel: usize) -> Params {
+        Params {
+            levels,
+            kernel,
+            demodulate: false,
+            eps: 0.01,
+            ldr: false,
+        }
+    }
+
+    /// Random logits for every level (kernels and blends) with standard deviation `sd`.
+    fn logits(rng: &mut Rng, p: &Params, h: usize, w: usize, sd: f32) -> Vec<Vec<f32>> {
+        let c = channels(p.kernel);
+        (0..p.levels)
+            .map(|l| rng.vec(c * (h >> l) * (w >> l), |r| r.normal(sd)))
+            .collect()
+    }
+
+    fn run(
+        p: &Params,
+        rgb: &[f32],
+        albedo: Option<&[f32]>,
+        f: &[Vec<f32>],
+        h: usize,
+        w: usize,
+    ) -> Vec<f32> {
+        let f: Vec<&[f32]> = f.iter().map(|v| v.as_slice()).collect();
+        reconstruct(p, rgb, albedo, &f, h, w).unwrap()
+    }
+
+    fn lum(v: &[f32], n: usize, i: usize) -> f32 {
+        (0..3).map(|c| LUMA_WEIGHTS[c] * v[c * n + i]).sum()
+    }
+
+    fn close(a: f32, b: f32, tol: f32) -> bool {
+        (a - b).abs() <= tol * b.abs().max(1.0)
+    }
+
+    #[test]
+    fn reach_matches_the_spec() {
+        assert_eq!(reach(3, 5), 17);
+        assert_eq!(reach(1, 5), 2);
+        assert_eq!(reach(2, 3), 4);
+        assert_eq!(channels(5), 52);
+    }
+
+    #[test]
+    fn exp_is_accurate() {
+        let mut worst = 0.0f64;
+        for i in 0..=870_000 {
+            let x = -(i as f32) * 1e-4;
+            let want = (x as f64).exp();
+            worst = worst.max(((exp_nonpos(x) as f64) - want).abs() / want);
+        }
+        assert!(worst < 3e-7, "relative error {worst}");
+        assert_eq!(exp_nonpos(-88.0), 0.0);
+        assert_eq!(exp_nonpos(-2.0 * LOGIT_MAX), 0.0);
+        assert_eq!(exp_nonpos(0.0), 1.0);
+    }
+
+    #[test]
+    fn zero_logits_at_one_level_are_a_box_filter_renormalised_at_the_border() {
+        let (h, w, k) = (7, 9, 3);
+        let mut rng = Rng(1);
+        let rgb = rng.vec(3 * h * w, |r| r.uniform() + 0.1);
+        let f = vec![vec![0.0; channels(k) * h * w]];
+        let out = run(&params(1, k), &rgb, None, &f, h, w);
+        for c in 0..3 {
+            for y in 0..h {
+                for x in 0..w {
+                    let (mut s, mut n) = (0.0, 0.0);
+                    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                            s += rgb[c * h * w + yy * w + xx];
+                            n += 1.0;
+                        }
+                    }
+                    let got = out[c * h * w + y * w + x];
+                    assert!(close(got, s / n, 1e-5), "({c},{y},{x}): {got} vs {}", s / n);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_constant_image_stays_constant_for_any_logits() {
+        let (h, w) = (16, 24);
+        let mut rng = Rng(2);
+        for (levels, k, sd) in [(1, 3, 3.0), (2, 5, 1.0), (3, 5, 5.0), (3, 3, 20.0)] {
+            let p = params(levels, k);
+            let rgb: Vec<f32> = [0.7f32, 0.2, 3.5]
+                .iter()
+                .flat_map(|&v| vec![v; h * w])
+                .collect();
+            let out = run(&p, &rgb, None, &logits(&mut rng, &p, h, w, sd), h, w);
+            for (i, (o, v)) in out.iter().zip(&rgb).enumerate() {
+                assert!(
+                    close(*o, *v, 1e-5),
+                    "L={levels} k={k} value {i}: {o} vs {v}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn heavy_tailed_noise_keeps_its_mean_under_random_logits() {
+        let (h, w) = (128, 128);
+        let n = h * w;
+        let base = [0.6f32, 0.25, 0.1];
+        let mut rng = Rng(3);
+        let u = rng.vec(n, |r| r.uniform());
+        let rgb: Vec<f32> = base
+            .iter()
+            .flat_map(|b| u.iter().map(move |u| 2.0 * b * u * u))
+            .collect();
+        let p = params(3, 5);
+        let out = run(&p, &rgb, None, &logits(&mut rng, &p, h, w, 2.0), h, w);
+        for c in 0..3 {
+            let mean =
+                |v: &[f32]| v[c * n..][..n].iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+            let (i, o) = (mean(&rgb), mean(&out));
+            assert!((o / i - 1.0).abs() < 0.01, "channel {c}: mean {i} -> {o}");
+        }
+    }
+
+    #[test]
+    fn the_output_luminance_is_the_luma_paths() {
+        // The luma path sees only Y and the luma logits, so a grey image of the same Y gives
+        // the luma path's result in every channel.
+        let (h, w) = (16, 16);
+        let n = h * w;
+        let mut rng = Rng(4);
+        let p = params(3, 3);
+        let rgb = rng.vec(3 * n, |r| 4.0 * r.uniform() * r.uniform());
+        let f = logits(&mut rng, &p, h, w, 2.0);
+        let out = run(&p, &rgb, None, &f, h, w);
+        let grey: Vec<f32> = (0..3)
+            .flat_map(|_| (0..n).map(|i| lum(&rgb, n, i)))
+            .collect();
+        let luma = run(&p, &grey, None, &f, h, w);
+        for (i, &want) in luma[..n].iter().enumerate() {
+            let got = lum(&out, n, i);
+            assert!(close(got, want, 1e-5), "pixel {i}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn non_finite_and_huge_logits_give_finite_output() {
+        let (h, w) = (8, 16);
+        let n = h * w;
+        let mut rng = Rng(5);
+        let specials = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            f32::MIN,
+            1e30,
+            -1e30,
+            88.0,
+            -88.0,
+        ];
+        let rgb = rng.vec(3 * n, |r| LINEAR_MAX * r.uniform().powi(8));
+        let albedo = rng.vec(3 * n, |r| if r.uniform() < 0.3 { 0.0 } else { r.uniform() });
+        for (demodulate, ldr) in [(false, false), (true, false), (true, true)] {
+            let p = Params {
+                demodulate,
+                ldr,
+                ..params(3, 5)
+            };
+            let mut f = logits(&mut rng, &p, h, w, 1.0);
+            for v in f.iter_mut().flatten() {
+                if rng.uniform() < 0.5 {
+                    *v =
+                        specials[(rng.uniform() * specials.len() as f32) as usize % specials.len()];
+                }
+            }
+            let out = run(&p, &rgb, Some(&albedo), &f, h, w);
+            let hi = if ldr { 1.0 } else { LINEAR_MAX };
+            assert!(out.iter().all(|v| v.is_finite() && (0.0..=hi).contains(v)));
+        }
+    }
+
+    #[test]
+    fn nan_logits_are_zero_and_infinite_ones_are_clamped() {
+        let (h, w, k) = (4, 6, 3);
+        let n = h * w;
+        let mut rng = Rng(6);
+        let rgb = rng.vec(3 * n, |r| r.uniform() + 0.1);
+        let box_out = run(
+            &params(1, k),
+            &rgb,
+            None,
+            &[vec![0.0; channels(k) * n]],
+            h,
+            w,
+        );
+        let nan_out = run(
+            &params(1, k),
+            &rgb,
+            None,
+            &[vec![f32::NAN; channels(k) * n]],
+            h,
+            w,
+        );
+        assert_eq!(box_out, nan_out);
+        // +Inf on the centre tap, -Inf elsewhere: the identity.
+        let mut f = vec![f32::NEG_INFINITY; channels(k) * n];
+        for kernel in 0..2 {
+            f[(kernel * k * k + k * k / 2) * n..][..n].fill(f32::INFINITY);
+        }
+        let out = run(&params(1, k), &rgb, None, &[f], h, w);
+        assert!(out.iter().zip(&rgb).all(|(o, v)| close(*o, *v, 1e-6)));
+    }
+
+    #[test]
+    fn demodulation_round_trips_a_constant_irradiance() {
+        let (h, w) = (16, 8);
+        let n = h * w;
+        let mut rng = Rng(7);
+        let p = Params {
+            demodulate: true,
+            eps: 0.01,
+            ..params(2, 5)
+        };
+        let albedo = rng.vec(3 * n, |r| if r.uniform() < 0.2 { 0.0 } else { r.uniform() });
+        let irradiance = [2.0f32, 1.5, 0.5];
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| irradiance[i / n] * (albedo[i] + p.eps))
+            .collect();
+        let out = run(
+            &p,
+            &rgb,
+            Some(&albedo),
+            &logits(&mut rng, &p, h, w, 3.0),
+            h,
+            w,
+        );
+        for (i, (o, v)) in out.iter().zip(&rgb).enumerate() {
+            assert!(close(*o, *v, 1e-5), "value {i}: {o} vs {v}");
+        }
+    }
+
+    #[test]
+    fn bad_arguments_are_errors() {
+        let (h, w) = (8, 8);
+        let n = h * w;
+        let rgb = vec![0.5; 3 * n];
+        let f0 = vec![0.0; channels(3) * n];
+        let f1 = vec![0.0; channels(3) * n / 4];
+        let ok: [&[f32]; 2] = [&f0, &f1];
+        let p = params(2, 3);
+        assert!(reconstruct(&p, &rgb, None, &ok, h, w).is_ok());
+        let err = |p: &Params, rgb: &[f32], a: Option<&[f32]>, f: &[&[f32]], h, w| {
+            matches!(
+                reconstruct(p, rgb, a, f, h, w),
+                Err(Error::InvalidArgument(_))
+            )
+        };
+        assert!(err(&params(0, 3), &rgb, None, &[], h, w));
+        assert!(err(&params(2, 4), &rgb, None, &ok, h, w));
+        assert!(err(&params(1, 3), &rgb, None, &ok, h, w));
+        assert!(err(&p, &rgb, None, &ok[..1], h, w));
+        assert!(err(&p, &rgb[1..], None, &ok, h, w));
+        assert!(err(&p, &rgb, None, &[&f0, &f0], h, w));
+        assert!(err(&p, &rgb, None, &ok, 0, 0));
+        assert!(err(&params(2, 3), &vec![0.5; 3 * 7 * 8], None, &ok, 7, 8));
+        assert!(err(&params(40, 3), &rgb, None, &ok, h, w));
+        assert!(err(&params(1, 3), &rgb, None, &ok[..1], usize::MAX, 2));
+        let demod = Params {
+            demodulate: true,
+            ..p
+        };
+        assert!(err(&demod, &rgb, None, &ok, h, w));
+        assert!(err(&demod, &rgb, Some(&rgb[..10]), &ok, h, w));
+        assert!(err(
+            &Params { eps: 0.0, ..demod },
+            &rgb,
+            Some(&rgb),
+            &ok,
+            h,
+            w
+        ));
+        assert!(reconstruct(&demod, &rgb, Some(&rgb), &ok, h, w).is_ok());
+    }
+
+    #[test]
+    fn every_instruction_set_gives_the_same_bits() {
+        let (h, w, k) = (12, 300, 5);
+        let mut rng = Rng(9);
+        let x = rng.vec(3 * h * w, |r| r.uniform());
+        let f = rng.vec(channels(k) * h * w, |r| r.normal(3.0));
+        let mut s = Scratch::new(k, w);
+        let any = filter_level_any(&x, &f, k, h, w, &mut s);
+        assert_eq!(filter_level(&x, &f, k, h, w, &mut s), any);
+    }
+
+    fn json_f32(v: &serde_json::Value) -> f32 {
+        match v {
+            serde_json::Value::String(s) => match s.as_str() {
+                "nan" => f32::NAN,
+                "inf" => f32::INFINITY,
+                "-inf" => f32::NEG_INFINITY,
+                other => panic!("bad number {other}"),
+            },
+            v => v.as_f64().expect("a number") as f32,
+        }
+    }
+
+    fn json_vec(v: &serde_json::Value) -> Vec<f32> {
+        v.as_array()
+            .expect("an array")
+            .iter()
+            .map(json_f32)
+            .collect()
+    }
+
+    /// The PyTorch reference (float64) of training/temc_train/recon_vectors.py.
+    #[test]
+    fn matches_the_pytorch_vectors() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/recon_vectors.json");
+        let text = std::fs::read_to_string(path).expect("tests/data/recon_vectors.json");
+        let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let tol = doc["tolerance"].as_f64().unwrap() as f32;
+        assert_eq!(doc["logit_max"].as_f64().unwrap() as f32, LOGIT_MAX);
+        let cases = doc["cases"].as_array().unwrap();
+        assert!(cases.len() >= 8);
+        for case in cases {
+            let name = case["name"].as_str().unwrap();
+            let dim = |k: &str| case[k].as_u64().unwrap() as usize;
+            let (h, w) = (dim("h"), dim("w"));
+            let p = Params {
+                levels: dim("levels"),
+                kernel: dim("kernel"),
+                demodulate: case["demodulate"].as_bool().unwrap(),
+                eps: case["eps"].as_f64().unwrap() as f32,
+                ldr: case["ldr"].as_bool().unwrap(),
+            };
+            let rgb = json_vec(&case["rgb"]);
+            let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));
+            let f: Vec<Vec<f32>> = case["filters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(json_vec)
+                .collect();
+            let want = json_vec(&case["out"]);
+            let got = run(&p, &rgb, albedo.as_deref(), &f, h, w);
+            assert_eq!(got.len(), want.len(), "{name}");
+            for (i, (g, e)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    close(*g, *e, tol),
+                    "{name} value {i}: rust {g} vs torch {e}"
+                );
+            }
+        }
+    }
+
+    /// `cargo test --release --lib reconstruct::tests::bench -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn bench_1080p_three_levels_of_5x5() {
+        // 1920x1088 streams 560 MB of logits from memory; a 256x256 tile stays in cache.
+        for (h, w, reps) in [(1088, 1920, 5), (256, 256, 100)] {
+            let mut rng = Rng(8);
+            let p = params(3, 5);
+            let rgb = rng.vec(3 * h * w, |r| r.uniform());
+            let f = logits(&mut rng, &p, h, w, 2.0);
+            let fr: Vec<&[f32]> = f.iter().map(|v| v.as_slice()).collect();
+            let mut best = f64::INFINITY;
+            for _ in 0..reps {
+                let t = std::time::Instant::now();
+                let out = reconstruct(&p, &rgb, None, &fr, h, w).unwrap();
+                best = best.min(t.elapsed().as_secs_f64());
+                std::hint::black_box(out);
+            }
+            let ns = best * 1e9 / (h * w) as f64;
+            println!("reconstruct {w}x{h}, 3 levels of 5x5: {ns:.1} ns/pixel");
+        }
+    }
+}

@@ -1,0 +1,108 @@
+"""Writes tests/data/recon_vectors.json: small reconstruction cases, their inputs and the
+float64 PyTorch result, so the Rust core (reconstruct::tests) and this module
+(tests/test_reconstruct.py) check themselves against one reference.
+
+Run from training/: python -m temc_train.recon_vectors. Inputs are written as short
+decimals that both sides read as float32; non-finite values as "nan", "inf", "-inf".
+"""
+
+import json
+import math
+import pathlib
+
+import numpy as np
+import torch
+
+from temc_train.reconstruct import LOGIT_MAX, channels, reconstruct
+
+OUT = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
+TOLERANCE = 1e-5
+SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
+
+
+def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0):
+    """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
+    rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
+    albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
+    filters = [
+        np.round(sd * rng.standard_normal((channels(kernel), h >> l, w >> l)), 2)
+        for l in range(levels)
+    ]
+    return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
+                eps=0.01, ldr=ldr, rgb=rgb, albedo=albedo if demodulate else None,
+                filters=filters)
+
+
+def cases():
+    """The cases: sizes, levels, kernels, modes, and the inputs that break naive code."""
+    rng = np.random.default_rng(14)
+    out = [
+        _case("box_8x8_L1_k3", rng, 8, 8, 1, 3, sd=0.0),
+        _case("random_8x8_L1_k5", rng, 8, 8, 1, 5),
+        _case("random_16x8_L2_k3", rng, 16, 8, 2, 3),
+        _case("random_8x8_L3_k3", rng, 8, 8, 3, 3),
+        _case("random_16x8_L3_k5", rng, 16, 8, 3, 5, sd=1.0),
+        _case("demod_8x8_L2_k3", rng, 8, 8, 2, 3, demodulate=True),
+        _case("ldr_8x16_L2_k3", rng, 8, 16, 2, 3, ldr=True),
+        _case("demod_ldr_8x8_L3_k5", rng, 8, 8, 3, 5, demodulate=True, ldr=True),
+        _case("sharp_8x8_L2_k3", rng, 8, 8, 2, 3, sd=30.0),
+    ]
+    c = _case("extreme_logits_8x8_L2_k3", rng, 8, 8, 2, 3)
+    for f in c["filters"]:
+        pick = rng.random(f.shape) < 0.3
+        f[pick] = rng.choice(SPECIALS, size=int(pick.sum()))
+    out.append(c)
+    c = _case("firefly_16x8_L3_k3", rng, 16, 8, 3, 3)
+    c["rgb"][:, 5, 3] = [60.0, 45.0, 30.0]
+    out.append(c)
+    c = _case("hdr_8x8_L2_k3_demod", rng, 8, 8, 2, 3, demodulate=True)
+    c["rgb"][:, 2:4, 2:6] = 65504.0
+    c["albedo"][:, 2:4, 2:6] = 1.0
+    out.append(c)
+    # A black pixel under a one-hot chroma kernel and a wide luma kernel: the grey fallback.
+    c = _case("grey_fallback_8x8_L1_k3", rng, 8, 8, 1, 3, sd=0.5)
+    c["rgb"][:, 4, 4] = 0.0
+    c["filters"][0][9:18, 4:5, 4:5] = -LOGIT_MAX
+    c["filters"][0][13, 4, 4] = LOGIT_MAX
+    out.append(c)
+    return out
+
+
+def run(case, dtype):
+    """The torch result for one case (inputs rounded to float32 first, like Rust reads them)."""
+    t = lambda a: torch.from_numpy(np.asarray(a, np.float32).astype(np.float64)).to(dtype)[None]
+    albedo = None if case["albedo"] is None else t(case["albedo"])
+    out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
+                      case["demodulate"], case["eps"], case["ldr"])
+    return out[0].double().numpy()
+
+
+def _num(v):
+    v = float(v)
+    if math.isnan(v):
+        return "nan"
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return v
+
+
+def _flat(a, digits=None):
+    return [_num(float(f"{v:.{digits}g}") if digits else v) for v in np.asarray(a).ravel()]
+
+
+def main():
+    doc = {"tolerance": TOLERANCE, "logit_max": LOGIT_MAX, "cases": []}
+    for case in cases():
+        out = run(case, torch.float64)
+        entry = {k: v for k, v in case.items() if k not in ("rgb", "albedo", "filters")}
+        entry["rgb"] = _flat(case["rgb"])
+        entry["albedo"] = None if case["albedo"] is None else _flat(case["albedo"])
+        entry["filters"] = [_flat(f) for f in case["filters"]]
+        entry["out"] = _flat(out, 10)
+        doc["cases"].append(entry)
+    OUT.write_text(json.dumps(doc, separators=(",", ":")) + "\n")
+    print(f"wrote {OUT} ({OUT.stat().st_size} bytes, {len(doc['cases'])} cases)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,104 @@
+"""The reconstruction of docs/reconstruction.md in PyTorch: the network's per-pixel filter
+logits, applied to linear radiance, differentiably, on NCHW batches.
+
+The Rust core (src/reconstruct.rs) runs the same function at inference; the vectors this
+module writes (temc_train.recon_vectors -> tests/data/recon_vectors.json) keep the two
+within 1e-5. Non-finite logits: NaN -> 0, everything clamped to +-LOGIT_MAX, in both.
+"""
+
+import torch
+import torch.nn.functional as F
+
+LINEAR_MAX = 65504.0
+LUMA = (0.2126, 0.7152, 0.0722)
+LOGIT_MAX = 1e4
+MIN_CHROMA_LUMA = 1e-30
+
+
+def channels(kernel):
+    """Logit channels per level: a luma and a chroma kernel, then two blend logits."""
+    return 2 * kernel * kernel + 2
+
+
+def reach(levels, kernel):
+    """Pixels reached from the centre: level-l taps are 2^l apart and cover 2^l pixels."""
+    return (kernel // 2) * (2**levels - 1) + 2 ** (levels - 1) - 1
+
+
+def _lum(x):
+    return LUMA[0] * x[:, 0:1] + LUMA[1] * x[:, 1:2] + LUMA[2] * x[:, 2:3]
+
+
+def _clean(logits):
+    """NaN -> 0 and a clamp to +-LOGIT_MAX, so the softmax and sigmoid stay finite."""
+    return torch.nan_to_num(logits, nan=0.0, posinf=LOGIT_MAX, neginf=-LOGIT_MAX).clamp(
+        -LOGIT_MAX, LOGIT_MAX
+    )
+
+
+def _inside(kernel, h, w, like):
+    """[1, k^2, H, W] mask of the taps that lie inside the level image."""
+    ones = torch.ones(1, 1, h, w, dtype=like.dtype, device=like.device)
+    return F.unfold(ones, kernel, padding=kernel // 2).view(1, kernel * kernel, h, w) > 0.5
+
+
+def _apply(x, weights, kernel):
+    """sum_t weights[:, t] * x(p + tap t): unfold's zero padding meets zero weights."""
+    n, c, h, w = x.shape
+    taps = F.unfold(x, kernel, padding=kernel // 2).view(n, c, kernel * kernel, h, w)
+    return (taps * weights.unsqueeze(1)).sum(2)
+
+
+def _filter_level(x, logits, kernel):
+    """(fy, fc, luma blend logit, chroma blend logit) of one level; softmax over taps inside."""
+    kk = kernel * kernel
+    logits = _clean(logits)
+    outside = ~_inside(kernel, x.shape[2], x.shape[3], x)
+    luma_w = torch.softmax(logits[:, :kk].masked_fill(outside, float("-inf")), dim=1)
+    chroma_w = torch.softmax(logits[:, kk : 2 * kk].masked_fill(outside, float("-inf")), dim=1)
+    fy = _apply(_lum(x), luma_w, kernel)
+    fc = _apply(x, chroma_w, kernel)
+    return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
+
+
+def _up(x):
+    return x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
+
+
+def _compose(fine, coarse, blend):
+    """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies."""
+    return fine + torch.sigmoid(blend) * (_up(coarse) - _up(F.avg_pool2d(fine, 2)))
+
+
+def _recombine(cy, cc):
+    """The chroma filter's colour at the luma filter's luminance (grey where it has none)."""
+    c = cc.clamp(min=0.0)
+    yc = _lum(c)
+    y = cy.clamp(min=0.0)
+    ok = yc > MIN_CHROMA_LUMA
+    ratio = y / torch.where(ok, yc, torch.ones_like(yc))  # no inf, so no NaN gradients
+    return torch.where(ok, c * ratio, y)
+
+
+def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False):
+    """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
+    [N, 2k^2 + 2, H / 2^l, W / 2^l]; `albedo` is read only when demodulating."""
+    for level, f in enumerate(filters):
+        want = (rgb.shape[0], channels(kernel), rgb.shape[2] >> level, rgb.shape[3] >> level)
+        if tuple(f.shape) != want:
+            raise ValueError(f"filters[{level}] has shape {tuple(f.shape)}, expected {want}")
+    d = albedo + eps if demodulate else None
+    x = rgb / d if demodulate else rgb
+    levels = []
+    for level, f in enumerate(filters):
+        if level:
+            x = F.avg_pool2d(x, 2)
+        levels.append(_filter_level(x, f, kernel))
+    cy, cc = levels[-1][:2]
+    for fy, fc, a, b in reversed(levels[:-1]):
+        cy, cc = _compose(fy, cy, a), _compose(fc, cc, b)
+    out = _recombine(cy, cc)
+    if demodulate:
+        out = out * d
+    out = torch.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+    return out.clamp(0.0, 1.0 if ldr else LINEAR_MAX)

@@ -1,0 +1,130 @@
+"""The PyTorch reconstruction (temc_train/reconstruct.py) against the shared vectors
+(tests/data/recon_vectors.json, which Rust checks too) in float32, and the properties the
+spec promises: border renormalisation, constants and means kept, finite for any logits."""
+
+import json
+import math
+import pathlib
+
+import numpy as np
+import pytest
+import torch
+
+from temc_train import recon_vectors
+from temc_train.reconstruct import LINEAR_MAX, LUMA, channels, reach, reconstruct
+
+VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
+DOC = json.loads(VECTORS.read_text())
+
+
+def num(v):
+    return {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}.get(v, v)
+
+
+def decode(case):
+    """The case's flat lists as the arrays recon_vectors.run takes."""
+    h, w = case["h"], case["w"]
+    arr = lambda v, hh, ww: np.array([num(x) for x in v], np.float64).reshape(-1, hh, ww)
+    c = dict(case, rgb=arr(case["rgb"], h, w), filters=[
+        arr(f, h >> l, w >> l) for l, f in enumerate(case["filters"])])
+    c["albedo"] = None if case["albedo"] is None else arr(case["albedo"], h, w)
+    return c
+
+
+def close(got, want, tol):
+    err = np.abs(got - want) / np.maximum(1.0, np.abs(want))
+    return float(err.max())
+
+
+@pytest.mark.parametrize("case", DOC["cases"], ids=[c["name"] for c in DOC["cases"]])
+def test_float32_matches_the_vectors(case):
+    want = np.array(case["out"], np.float64).reshape(3, case["h"], case["w"])
+    got = recon_vectors.run(decode(case), torch.float32)
+    assert close(got, want, DOC["tolerance"]) <= DOC["tolerance"]
+
+
+@pytest.mark.parametrize("case", DOC["cases"], ids=[c["name"] for c in DOC["cases"]])
+def test_the_vectors_are_current(case):
+    want = np.array(case["out"], np.float64).reshape(3, case["h"], case["w"])
+    assert close(recon_vectors.run(decode(case), torch.float64), want, 1e-8) <= 1e-8
+
+
+def random_filters(gen, n, h, w, levels, kernel, sd):
+    return [sd * torch.randn(n, channels(kernel), h >> l, w >> l, generator=gen)
+            for l in range(levels)]
+
+
+def lum(x):
+    return sum(LUMA[c] * x[:, c] for c in range(3))
+
+
+def test_reach_and_channels():
+    assert reach(3, 5) == 17 and reach(1, 5) == 2 and reach(2, 3) == 4
+    assert channels(5) == 52
+
+
+def test_zero_logits_at_one_level_are_a_box_filter_renormalised_at_the_border():
+    gen = torch.Generator().manual_seed(1)
+    rgb = torch.rand(2, 3, 7, 9, generator=gen) + 0.1
+    out = reconstruct(rgb, None, [torch.zeros(2, channels(3), 7, 9)], 3)
+    sums = torch.nn.functional.avg_pool2d(rgb, 3, 1, 1, divisor_override=1)
+    count = torch.nn.functional.avg_pool2d(torch.ones(1, 1, 7, 9), 3, 1, 1, divisor_override=1)
+    torch.testing.assert_close(out, sums / count, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("levels,kernel,sd", [(1, 3, 3.0), (2, 5, 1.0), (3, 5, 5.0), (3, 3, 20.0)])
+def test_a_constant_image_stays_constant_for_any_logits(levels, kernel, sd):
+    gen = torch.Generator().manual_seed(2)
+    rgb = torch.tensor([0.7, 0.2, 3.5]).view(1, 3, 1, 1).expand(2, 3, 16, 24)
+    out = reconstruct(rgb, None, random_filters(gen, 2, 16, 24, levels, kernel, sd), kernel)
+    torch.testing.assert_close(out, rgb, rtol=1e-5, atol=1e-6)
+
+
+def test_heavy_tailed_noise_keeps_its_mean_under_random_logits():
+    gen = torch.Generator().manual_seed(3)
+    u = torch.rand(1, 1, 128, 128, generator=gen)
+    rgb = 2.0 * torch.tensor([0.6, 0.25, 0.1]).view(1, 3, 1, 1) * u**2
+    out = reconstruct(rgb, None, random_filters(gen, 1, 128, 128, 3, 5, 2.0), 5)
+    ratio = out.double().mean((0, 2, 3)) / rgb.double().mean((0, 2, 3))
+    assert torch.all((ratio - 1).abs() < 0.01), ratio
+
+
+def test_the_output_luminance_is_the_luma_paths():
+    gen = torch.Generator().manual_seed(4)
+    rgb = 4.0 * torch.rand(2, 3, 16, 16, generator=gen) * torch.rand(2, 3, 16, 16, generator=gen)
+    f = random_filters(gen, 2, 16, 16, 3, 3, 2.0)
+    grey = lum(rgb).unsqueeze(1).expand(2, 3, 16, 16)
+    torch.testing.assert_close(lum(reconstruct(rgb, None, f, 3)),
+                               reconstruct(grey, None, f, 3)[:, 0], rtol=1e-5, atol=1e-6)
+
+
+def test_demodulation_round_trips_a_constant_irradiance():
+    gen = torch.Generator().manual_seed(7)
+    albedo = torch.rand(2, 3, 16, 8, generator=gen)
+    albedo = torch.where(torch.rand(2, 3, 16, 8, generator=gen) < 0.2, 0.0, albedo)
+    rgb = torch.tensor([2.0, 1.5, 0.5]).view(1, 3, 1, 1) * (albedo + 0.01)
+    out = reconstruct(rgb, albedo, random_filters(gen, 2, 16, 8, 2, 5, 3.0), 5, demodulate=True)
+    torch.testing.assert_close(out, rgb, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("demodulate,ldr", [(False, False), (True, False), (True, True)])
+def test_non_finite_and_huge_logits_give_finite_output_and_gradients(demodulate, ldr):
+    gen = torch.Generator().manual_seed(5)
+    rgb = (LINEAR_MAX * torch.rand(1, 3, 8, 16, generator=gen) ** 8).requires_grad_()
+    albedo = torch.rand(1, 3, 8, 16, generator=gen)
+    specials = torch.tensor(recon_vectors.SPECIALS, dtype=torch.float32)
+    filters = []
+    for f in random_filters(gen, 1, 8, 16, 3, 5, 1.0):
+        pick = torch.rand(f.shape, generator=gen) < 0.5
+        idx = torch.randint(len(specials), f.shape, generator=gen)
+        filters.append(torch.where(pick, specials[idx], f).requires_grad_())
+    out = reconstruct(rgb, albedo, filters, 5, demodulate=demodulate, ldr=ldr)
+    assert torch.isfinite(out).all() and out.min() >= 0 and out.max() <= (1 if ldr else LINEAR_MAX)
+    out.sum().backward()
+    assert torch.isfinite(rgb.grad).all()
+    assert all(torch.isfinite(f.grad).all() for f in filters)
+
+
+def test_bad_filter_shapes_are_errors():
+    with pytest.raises(ValueError):
+        reconstruct(torch.zeros(1, 3, 8, 8), None, [torch.zeros(1, channels(3), 8, 4)], 3)
