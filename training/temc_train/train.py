@@ -7,10 +7,18 @@ budget.
 The budget counts the CPU seconds (process time) spent in training steps, validation
 excluded, so every architecture gets the same compute even when runs share the machine or
 other work slows them; with `--threads 1` on an otherwise idle core this equals wall-clock
-time. Rerunning the same command resumes from
+time. On a CUDA device (`--device cuda`, or `auto` where one is present) process time
+means nothing, so there a step counts its wall seconds, kept apart in the checkpoint's
+`gpu_seconds` (`train_s` stays CPU seconds); `--hours` then bounds `train_s + gpu_seconds`.
+`--minutes` bounds this invocation's wall clock (from start, loading included; the loop
+stops after the first step past it, then validates and saves), whichever comes first.
+`--shard FILE` trains on a compact shard (`shard.py`) instead of a data set folder, for a
+machine without the renderer (`scripts/train-gpu`). Checkpoints hold CPU tensors, so they
+resume and export anywhere. Rerunning the same command resumes from
 RUN/checkpoint.pt (model, optimiser, step, clock and random state), saved every
-`--save-minutes` and at the end. RUN/log.csv records step, training seconds and the
-validation loss, which is what the accuracy report plots as training time against
+`--save-minutes` and at the end. RUN/log.csv records step, training seconds (what the
+budget counts: `train_s + gpu_seconds`), the training and validation loss and the device
+the steps ran on, which is what the accuracy report plots as training time against
 validation loss. RUN/model.pt is the final checkpoint in the form `export.py --checkpoint`
 reads.
 
@@ -33,7 +41,7 @@ import time
 import numpy as np
 import torch
 
-from . import data
+from . import data, shard
 from .loss import ALPHA, training_loss
 from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, count_params
 from .reconstruct import reconstruct
@@ -59,12 +67,12 @@ def denoise(model, xs, rs: dict):
     return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"])
 
 
-def validate(model, val, alpha, rs, batch=8) -> float:
+def validate(model, val, alpha, rs, batch=8, device="cpu") -> float:
     model.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for i in range(0, len(val[0]), batch):
-            xs = [torch.from_numpy(v[i:i + batch]) for v in val]
+            xs = [torch.from_numpy(v[i:i + batch]).to(device) for v in val]
             total += float(training_loss(denoise(model, xs, rs), xs[5], alpha)) * len(xs[0])
             n += len(xs[0])
     model.train()
@@ -76,7 +84,8 @@ def compact_optimizer_state(opt_state: dict) -> dict:
     as it would in float16)."""
     out = {"param_groups": opt_state["param_groups"], "state": {}}
     for k, v in opt_state["state"].items():
-        out["state"][k] = {n: (t.to(torch.bfloat16) if torch.is_tensor(t) and t.dim() > 0 else t)
+        out["state"][k] = {n: (t.detach().to("cpu", torch.bfloat16) if torch.is_tensor(t) and t.dim() > 0
+                               else t.detach().cpu() if torch.is_tensor(t) else t)
                            for n, t in v.items()}
     return out
 
@@ -89,75 +98,164 @@ def restore_optimizer_state(opt, saved: dict) -> None:
     opt.load_state_dict(state)
 
 
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise SystemExit("--device cuda: no CUDA device")
+    return torch.device(name)
+
+
+def cpu_state(sd: dict) -> dict:
+    return {k: (v.detach().cpu() if torch.is_tensor(v) else v) for k, v in sd.items()}
+
+
+LOG_COLUMNS = ["step", "train_seconds", "train_loss", "val_loss", "device"]
+
+
+def open_log(path: str):
+    """RUN/log.csv for appending. A log from before the device column gets it (its rows ran
+    on the CPU: train.py had no other device then)."""
+    if os.path.exists(path):
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+        if rows and rows[0] and "device" not in rows[0]:
+            n = len(rows[0])
+            tmp = path + f".tmp-{os.getpid()}"
+            with open(tmp, "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(rows[0] + ["device"])
+                w.writerows(r + [""] * (n - len(r)) + ["cpu"] for r in rows[1:] if r)
+            os.replace(tmp, path)
+    new = not os.path.exists(path) or os.path.getsize(path) == 0
+    log = open(path, "a", newline="")
+    w = csv.writer(log)
+    if new:
+        w.writerow(LOG_COLUMNS)
+    return log, w
+
+
+class Batches(torch.utils.data.IterableDataset):
+    """Training batches made in DataLoader worker processes (`--workers`), each worker with
+    its own random stream (seed, step at start, worker): on a GPU the numpy sampling would
+    otherwise be the bottleneck."""
+
+    def __init__(self, scenes, n, crop, seed):
+        super().__init__()
+        self.scenes, self.n, self.crop, self.seed = scenes, n, crop, seed
+
+    def __iter__(self):
+        info = torch.utils.data.get_worker_info()
+        rng = np.random.default_rng(self.seed + [info.id if info else 0])
+        while True:
+            yield data.batch(self.scenes, rng, self.n, self.crop)
+
+
 def train(a) -> dict:
+    start = time.monotonic()
     torch.set_num_threads(a.threads)
+    device = pick_device(a.device)
+    cuda = device.type == "cuda"
+    if cuda:
+        torch.backends.cudnn.benchmark = True
     os.makedirs(a.run, exist_ok=True)
     ckpt_path = os.path.join(a.run, "checkpoint.pt")
-    train_scenes = data.load_split(a.data, "train")
-    val_scenes = data.load_split(a.data, "val")
+    if a.shard:
+        train_scenes, val_scenes = shard.load(a.shard)
+        dataset = shard.read_manifest(a.shard)["dataset"]
+        source = a.shard
+    else:
+        train_scenes = data.load_split(a.data, "train")
+        val_scenes = data.load_split(a.data, "val")
+        dataset = os.path.basename(os.path.normpath(a.data))
+        source = a.data
     if not train_scenes:
-        raise SystemExit(f"{a.data}: no finished training scenes yet")
+        raise SystemExit(f"{source}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
     torch.manual_seed(a.seed)
     rs = recon_settings(a)
     model = build(a.arch, a.width, a.levels, a.kernel, a.split)
-    opt = torch.optim.Adam(model.parameters(), lr=a.lr)
-    state = {"step": 0, "train_s": 0.0, "rng": np.random.default_rng(a.seed).bit_generator.state}
+    state = {"step": 0, "train_s": 0.0, "gpu_seconds": 0.0,
+             "rng": np.random.default_rng(a.seed).bit_generator.state}
     if os.path.exists(ckpt_path):
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         held = (ck["arch"], ck["width"], ck.get("recon"))
         if held != (a.arch, a.width, rs):
             raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
         model.load_state_dict(ck["model"])
+    model.to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=a.lr)
+    if os.path.exists(ckpt_path):
         if ck.get("opt") is not None:
-            restore_optimizer_state(opt, ck["opt"])
+            restore_optimizer_state(opt, ck["opt"])  # moves the moments to the parameters' device
         state = ck["state"]
-        print(f"resuming at step {state['step']}, {state['train_s']:.0f} s trained", flush=True)
+        state.setdefault("gpu_seconds", 0.0)
+        print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
+              f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
+        del ck
     rng = np.random.default_rng()
     rng.bit_generator.state = state["rng"]
-    log_path = os.path.join(a.run, "log.csv")
-    new_log = not os.path.exists(log_path)
-    log = open(log_path, "a", newline="")
-    w = csv.writer(log)
-    if new_log:
-        w.writerow(["step", "train_seconds", "train_loss", "val_loss"])
+    log, w = open_log(os.path.join(a.run, "log.csv"))
     budget = a.hours * 3600.0
+    wall = float("inf") if a.minutes is None else a.minutes * 60.0
+    used = lambda: state["train_s"] + state["gpu_seconds"]  # noqa: E731
     last_save = last_val = time.monotonic()
     ema = None
+    loader = None
+
+    def batches(scenes):
+        if a.workers <= 0:
+            return None
+        dl = torch.utils.data.DataLoader(Batches(scenes, a.batch, a.crop, [a.seed, state["step"]]),
+                                         batch_size=None, num_workers=a.workers, pin_memory=cuda,
+                                         prefetch_factor=4, persistent_workers=False)
+        return iter(dl)
 
     def checkpoint():
         state["rng"] = rng.bit_generator.state
-        ck = {"model": model.state_dict(), "opt": compact_optimizer_state(opt.state_dict()),
-              "state": state, "arch": a.arch, "width": a.width, "recon": rs,
-              "dataset": os.path.basename(os.path.normpath(a.data))}
+        ck = {"model": cpu_state(model.state_dict()),
+              "opt": compact_optimizer_state(opt.state_dict()),
+              "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
         _save(ck, ckpt_path)
         if os.path.getsize(ckpt_path) > CHECKPOINT_LIMIT:
             ck["opt"] = None
             _save(ck, ckpt_path)
 
     if state["step"] == 0:
-        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs):.6f}"])
+        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, device=device):.6f}", device.type])
         log.flush()
     model.train()
-    while state["train_s"] < budget and state["step"] < a.max_steps:
-        t0 = time.process_time()
-        xs = [torch.from_numpy(v) for v in data.batch(train_scenes, rng, a.batch, a.crop)]
+    loader = batches(train_scenes)
+    print(f"training on {device.type} ({len(train_scenes)} scenes from {source})", flush=True)
+    while (used() < budget and state["step"] < a.max_steps
+           and time.monotonic() - start < wall):
+        t0 = time.monotonic() if cuda else time.process_time()
+        arrays = data.batch(train_scenes, rng, a.batch, a.crop) if loader is None else next(loader)
+        xs = [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(device, non_blocking=True)
+              for v in arrays]
         loss = training_loss(denoise(model, xs, rs), xs[5], a.alpha)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
-        state["train_s"] += time.process_time() - t0
+        l = float(loss.detach())  # waits for the device: the step's time is all in
+        if cuda:
+            state["gpu_seconds"] += time.monotonic() - t0
+        else:
+            state["train_s"] += time.process_time() - t0
         state["step"] += 1
-        l = float(loss.detach())
         ema = l if ema is None else 0.98 * ema + 0.02 * l
         now = time.monotonic()
-        done = state["train_s"] >= budget or state["step"] >= a.max_steps
+        done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
         if now - last_val >= a.val_minutes * 60 or done:
-            v = validate(model, val, a.alpha, rs)
-            train_scenes = data.refresh_split(a.data, "train", train_scenes)
-            w.writerow([state["step"], f"{state['train_s']:.1f}", f"{ema:.6f}", f"{v:.6f}"])
+            v = validate(model, val, a.alpha, rs, device=device)
+            if not a.shard:
+                n = len(train_scenes)
+                train_scenes = data.refresh_split(a.data, "train", train_scenes)
+                if loader is not None and len(train_scenes) != n:
+                    loader = batches(train_scenes)
+            w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
             log.flush()
-            print(f"step {state['step']}  {state['train_s']:.0f}/{budget:.0f} s  "
+            print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
                   f"train {ema:.4f}  val {v:.4f}", flush=True)
             last_val = time.monotonic()
         if now - last_save >= a.save_minutes * 60 or done:
@@ -165,17 +263,18 @@ def train(a) -> dict:
             last_save = time.monotonic()
     checkpoint()
     log.close()
-    final = {"model": model.state_dict(), "arch": a.arch, "width": a.width, "recon": rs,
-             "dataset": os.path.basename(os.path.normpath(a.data)),
-             "train_steps": state["step"], "train_seconds": state["train_s"],
-             "params": count_params(model)}
+    final = {"model": cpu_state(model.state_dict()), "arch": a.arch, "width": a.width, "recon": rs,
+             "dataset": dataset, "train_steps": state["step"], "train_seconds": state["train_s"],
+             "gpu_seconds": state["gpu_seconds"], "params": count_params(model)}
     _save(final, os.path.join(a.run, "model.pt"))
     return final
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", required=True, help="a temc-render dataset folder")
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--data", help="a temc-render dataset folder")
+    src.add_argument("--shard", help="a shard file (shard.py) instead of --data")
     ap.add_argument("--arch", choices=ARCHS, required=True)
     ap.add_argument("--width", type=float, required=True)
     ap.add_argument("--levels", type=int, default=LEVELS, help="pyramid levels of the reconstruction")
@@ -187,7 +286,16 @@ def main(argv=None):
     ap.add_argument("--eps", type=float, default=0.01, help="demodulation's epsilon")
     ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
     ap.add_argument("--hours", type=float, default=1.0,
-                    help="training budget in CPU hours spent in steps")
+                    help="cumulative training budget: CPU hours spent in steps, plus wall hours of "
+                         "steps on CUDA")
+    ap.add_argument("--minutes", type=float, default=None,
+                    help="wall-clock limit of this invocation (loading included)")
+    ap.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu",
+                    help="where the steps run (auto: CUDA if present)")
+    ap.add_argument("--workers", type=int, default=0,
+                    help="DataLoader processes making batches (0: in this process, the "
+                         "checkpointed random stream; >0 is for GPUs: their CPU time is not "
+                         "counted in the CPU budget)")
     ap.add_argument("--max-steps", type=int, default=10**9)
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--crop", type=int, default=data.CROP)
@@ -200,7 +308,8 @@ def main(argv=None):
     ap.add_argument("--save-minutes", type=float, default=5.0)
     a = ap.parse_args(argv)
     f = train(a)
-    print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} s -> {a.run}/model.pt")
+    print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} CPU s + "
+          f"{f['gpu_seconds']:.0f} GPU s -> {a.run}/model.pt")
 
 
 if __name__ == "__main__":
