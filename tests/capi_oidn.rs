@@ -1,0 +1,1 @@
+//! The C ABI's OIDN semantics, driven from Rust.
