@@ -285,7 +285,10 @@ pub unsafe extern "C" fn temcGetPhysicalDeviceUInt(id: i32, name: *const c_char)
 /// # Safety
 /// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub unsafe extern "C" fn temcGetPhysicalDeviceString(id: i32, name: *const c_char) -> *const c_char {
+pub unsafe extern "C" fn temcGetPhysicalDeviceString(
+    id: i32,
+    name: *const c_char,
+) -> *const c_char {
     guarded(std::ptr::null(), |_| {
         physical(id)?;
         // SAFETY: the caller's contract.
@@ -385,7 +388,9 @@ pub extern "C" fn temcNewDeviceByID(physical_device_id: i32) -> TEMCDevice {
 #[no_mangle]
 pub extern "C" fn temcNewDeviceByUUID(_uuid: *const c_void) -> TEMCDevice {
     guarded(std::ptr::null_mut(), |_| {
-        Err(Failure::invalid("no physical device with this UUID (temc has only the CPU)"))
+        Err(Failure::invalid(
+            "no physical device with this UUID (temc has only the CPU)",
+        ))
     })
 }
 
@@ -393,7 +398,9 @@ pub extern "C" fn temcNewDeviceByUUID(_uuid: *const c_void) -> TEMCDevice {
 #[no_mangle]
 pub extern "C" fn temcNewDeviceByLUID(_luid: *const c_void) -> TEMCDevice {
     guarded(std::ptr::null_mut(), |_| {
-        Err(Failure::invalid("no physical device with this LUID (temc has only the CPU)"))
+        Err(Failure::invalid(
+            "no physical device with this LUID (temc has only the CPU)",
+        ))
     })
 }
 
@@ -801,7 +808,9 @@ pub extern "C" fn temcGetBufferStorage(buffer: TEMCBuffer) -> TEMCStorage {
 /// Returns the buffer's data, host-accessible (NULL for an empty buffer or on error).
 #[no_mangle]
 pub extern "C" fn temcGetBufferData(buffer: TEMCBuffer) -> *mut c_void {
-    guarded(std::ptr::null_mut(), |c| Ok(c.buffer(buffer)?.ptr as *mut c_void))
+    guarded(std::ptr::null_mut(), |c| {
+        Ok(c.buffer(buffer)?.ptr as *mut c_void)
+    })
 }
 
 /// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
@@ -923,7 +932,10 @@ pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
 /// # Safety
 /// `filter_type` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub unsafe extern "C" fn temcNewFilter(device: TEMCDevice, filter_type: *const c_char) -> TEMCFilter {
+pub unsafe extern "C" fn temcNewFilter(
+    device: TEMCDevice,
+    filter_type: *const c_char,
+) -> TEMCFilter {
     guarded(std::ptr::null_mut(), |c| {
         let d = c.device(device)?;
         // SAFETY: the caller's contract.
@@ -1010,7 +1022,14 @@ pub unsafe extern "C" fn temcSetFilterImage(
         }
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let l = layout(format, width, height, byte_offset, pixel_byte_stride, row_byte_stride)?;
+        let l = layout(
+            format,
+            width,
+            height,
+            byte_offset,
+            pixel_byte_stride,
+            row_byte_stride,
+        )?;
         let mut st = f.lock();
         st.check_buffer_image(name, &l, &b)?;
         let ptr = b.ptr;
@@ -1051,7 +1070,14 @@ pub unsafe extern "C" fn temcSetSharedFilterImage(
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let l = layout(format, width, height, byte_offset, pixel_byte_stride, row_byte_stride)?;
+        let l = layout(
+            format,
+            width,
+            height,
+            byte_offset,
+            pixel_byte_stride,
+            row_byte_stride,
+        )?;
         // SAFETY: the caller's contract.
         let mut st = f.lock();
         // SAFETY: the caller's contract.
@@ -1101,9 +1127,7 @@ pub unsafe extern "C" fn temcSetSharedFilterData(
         // SAFETY: the caller's contract.
         let mut st = f.lock();
         // SAFETY: the caller's contract.
-        unsafe {
-            st.set_data(&f.device, name_arg(name)?, host_ptr as *const u8, byte_size)
-        }
+        unsafe { st.set_data(&f.device, name_arg(name)?, host_ptr as *const u8, byte_size) }
     })
 }
 

@@ -242,10 +242,17 @@ mod tests {
     #[test]
     fn the_noise_estimate_sees_noise_and_not_edges() {
         let (w, h) = (64, 64);
-        let clean: Vec<f64> = clean_albedo(w, h).iter().step_by(3).map(|&v| v as f64).collect();
+        let clean: Vec<f64> = clean_albedo(w, h)
+            .iter()
+            .step_by(3)
+            .map(|&v| v as f64)
+            .collect();
         assert!(noise_sigma(&clean, w, h) < 0.01);
         let mut seed = 1;
-        let noisy: Vec<f64> = clean.iter().map(|&c| c + 0.05 * noise(&mut seed) as f64).collect();
+        let noisy: Vec<f64> = clean
+            .iter()
+            .map(|&c| c + 0.05 * noise(&mut seed) as f64)
+            .collect();
         let s = noise_sigma(&noisy, w, h);
         assert!((s - 0.05).abs() < 0.015, "sigma {s}");
     }

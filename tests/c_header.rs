@@ -90,7 +90,10 @@ fn version_macros_agree() {
             + temc::capi::TEMC_VERSION_MINOR * 100
             + temc::capi::TEMC_VERSION_PATCH
     );
-    assert!(temc::capi::TEMC_VERSION_MAJOR >= 2, "clients' 2.x checks must pass");
+    assert!(
+        temc::capi::TEMC_VERSION_MAJOR >= 2,
+        "clients' 2.x checks must pass"
+    );
 }
 
 #[test]
@@ -108,7 +111,10 @@ fn cpp_wrapper_uses_only_what_the_header_declares_and_compiles() {
         .filter(|n| n != "TEMC_HPP")
         .collect();
     let missing: Vec<_> = used.difference(&declared).collect();
-    assert!(missing.is_empty(), "temc.hpp uses names temc.h lacks: {missing:?}");
+    assert!(
+        missing.is_empty(),
+        "temc.hpp uses names temc.h lacks: {missing:?}"
+    );
     // Every C function the header declares has a C++ counterpart, except the ones OIDN's
     // wrapper leaves out too (deprecated 1.x names, SYCL execution, Metal buffers).
     let functions: BTreeSet<String> = names(&header, "temc")

@@ -426,9 +426,7 @@ impl FilterState {
             })
         } else {
             if has("color") && has("spectral") {
-                return Err(Failure::invalid(
-                    "set \"color\" or \"spectral\", not both",
-                ));
+                return Err(Failure::invalid("set \"color\" or \"spectral\", not both"));
             }
             let hdr = self.filter.get_int("hdr")? != 0;
             Mode::Denoise {
@@ -525,7 +523,11 @@ impl FilterState {
         let l = img.layout;
         let n = bands.len();
         let (cb, px) = (l.format.channel_bytes(), spectral_pixel_stride(&l, n));
-        let row = if l.row_stride == 0 { px * l.width } else { l.row_stride };
+        let row = if l.row_stride == 0 {
+            px * l.width
+        } else {
+            l.row_stride
+        };
         let mut values = vec![0f32; n];
         for y in 0..l.height {
             for x in 0..l.width {
@@ -573,7 +575,11 @@ impl FilterState {
 
     /// Denoises the one aux image into the output.
     fn prefilter(&mut self, kind: AuxKind) -> Outcome<()> {
-        let name = if kind == AuxKind::Albedo { "albedo" } else { "normal" };
+        let name = if kind == AuxKind::Albedo {
+            "albedo"
+        } else {
+            "normal"
+        };
         let (src, out) = (&self.images[name], &self.images["output"]);
         let (l, o) = (src.layout, out.layout);
         if (l.width, l.height) != (o.width, o.height) {

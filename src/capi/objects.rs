@@ -145,8 +145,12 @@ impl BufferObj {
                 owned: None,
             });
         }
-        let layout = std::alloc::Layout::from_size_align(size, BUFFER_ALIGN)
-            .map_err(|_| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, format!("buffer of {size} bytes is too large")))?;
+        let layout = std::alloc::Layout::from_size_align(size, BUFFER_ALIGN).map_err(|_| {
+            Failure::new(
+                TEMC_ERROR_OUT_OF_MEMORY,
+                format!("buffer of {size} bytes is too large"),
+            )
+        })?;
         // SAFETY: the layout has a non-zero size.
         let ptr = unsafe { std::alloc::alloc_zeroed(layout) };
         if ptr.is_null() {

@@ -150,7 +150,10 @@ mod tests {
         assert!(r.get(a).is_none() && r.release(a).is_none() && !r.retain(a));
         assert_eq!(r.get(b).as_deref(), Some(&20));
         let other = Registry::<i32>::new(2);
-        assert!(other.get(b).is_none(), "a handle of another kind is refused");
+        assert!(
+            other.get(b).is_none(),
+            "a handle of another kind is refused"
+        );
         assert!(r.get(0).is_none() && r.get(usize::MAX).is_none());
     }
 }
