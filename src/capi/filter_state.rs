@@ -32,7 +32,7 @@ struct SetImage {
     ptr: *mut u8,
     layout: Layout,
     /// Held so the buffer outlives the image (OIDN filters retain their buffers).
-    _buffer: Option<Arc<BufferObj>>,
+    buffer: Option<Arc<BufferObj>>,
 }
 
 /// Which path a committed filter takes.
@@ -175,7 +175,7 @@ impl FilterState {
             SetImage {
                 ptr,
                 layout,
-                _buffer: buffer,
+                buffer,
             },
         );
         self.changed();
@@ -482,8 +482,17 @@ impl FilterState {
                 "spectralMax ({hi}) must exceed spectralMin ({lo})"
             )));
         }
-        let l = self.images["spectral"].layout;
-        spectral_span(&l, n as usize)?;
+        let img = &self.images["spectral"];
+        let span = spectral_span(&img.layout, n as usize)?;
+        // The band count may have grown since the image was set: check its buffer again.
+        if let Some(b) = &img.buffer {
+            if span > b.size {
+                return Err(Failure::invalid(format!(
+                    "image \"spectral\": {n} bands span {span} bytes, the buffer has {}",
+                    b.size
+                )));
+            }
+        }
         let edges: Vec<f32> = (0..=n)
             .map(|i| lo + (hi - lo) * i as f32 / n as f32)
             .collect();
