@@ -628,7 +628,7 @@ fn spectral_pixel_stride(l: &Layout, bands: usize) -> usize {
 fn spectral_span(l: &Layout, bands: usize) -> Outcome<usize> {
     let cb = l.format.channel_bytes();
     let px = spectral_pixel_stride(l, bands);
-    let pixel = cb.checked_mul(bands).unwrap_or(usize::MAX);
+    let pixel = cb.saturating_mul(bands);
     if px < pixel {
         return Err(Failure::invalid(format!(
             "image \"spectral\": pixel stride {px} is smaller than {bands} bands ({pixel} bytes)"
