@@ -158,6 +158,9 @@ struct UUID {
 /// Opaque locally unique identifier of a physical device.
 struct LUID {
   union {
+#if defined(__GNUC__)
+    __extension__  // an anonymous struct, as OIDN's (low, high) members need
+#endif
     struct {
       uint32_t low;
       int32_t high;

@@ -140,7 +140,7 @@ fn cpp_wrapper_uses_only_what_the_header_declares_and_compiles() {
         unwrapped.iter().all(|f| *f == "temcGetPhysicalDeviceUInt"),
         "temc.h functions temc.hpp does not wrap: {unwrapped:?}"
     );
-    // Compile it, C++11, with the warnings the examples use.
+    // Compile it, C++11, with the examples' warnings and -pedantic.
     let out = std::env::temp_dir().join(format!("temc-hpp-{}.o", std::process::id()));
     let src = std::env::temp_dir().join(format!("temc-hpp-{}.cpp", std::process::id()));
     std::fs::write(
@@ -152,7 +152,15 @@ fn cpp_wrapper_uses_only_what_the_header_declares_and_compiles() {
     .unwrap();
     let cxx = std::env::var("CXX").unwrap_or_else(|_| "c++".into());
     let result = Command::new(&cxx)
-        .args(["-std=c++11", "-Wall", "-Wextra", "-Werror", "-c", "-I"])
+        .args([
+            "-std=c++11",
+            "-Wall",
+            "-Wextra",
+            "-pedantic",
+            "-Werror",
+            "-c",
+            "-I",
+        ])
         .arg(root().join("include"))
         .arg(&src)
         .arg("-o")
