@@ -341,3 +341,104 @@ fn spectral_input_equals_its_cmf_conversion_as_colour() {
     temcReleaseFilter(f);
     temcReleaseDevice(d);
 }
+
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.0031308 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// OIDN's "srgb" (LDR input): the colour is decoded to linear before denoising and the
+/// output encoded again, the same as doing it around the Rust API.
+#[test]
+fn srgb_ldr_input_is_linearised_and_the_output_encoded() {
+    let (w, h) = (20, 14);
+    let color: Vec<f32> = image(w, h).iter().map(|v| v.min(1.0)).collect();
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    unsafe { temcSetFilterBool(f, c("srgb").as_ptr(), true) };
+    let mut out = vec![0f32; w * h * 3];
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d), (TEMC_ERROR_NONE, String::new()));
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+
+    let linear: Vec<f32> = color.iter().map(|&v| srgb_to_linear(v)).collect();
+    let dev = Device::new();
+    dev.commit().unwrap();
+    let mut rf = Filter::new(&dev, "TEMC2").unwrap();
+    rf.set_quality(Quality::Fast);
+    rf.set_hdr(false);
+    rf.set_input_f32("color", &linear, w, h).unwrap();
+    rf.commit().unwrap();
+    let expected: Vec<f32> = rf
+        .execute_to_vec()
+        .unwrap()
+        .0
+        .iter()
+        .map(|&v| linear_to_srgb(v))
+        .collect();
+    assert_eq!(out, expected);
+}
+
+/// Many threads create, retain, release and misuse handles at once: stale handles are
+/// errors every time (never a crash or another object), live ones keep working.
+#[test]
+fn concurrent_handle_churn_never_confuses_handles() {
+    let d = device();
+    let shared = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    let (dh, sh) = (d as usize, shared as usize);
+    let workers: Vec<_> = (0..4)
+        .map(|t| {
+            std::thread::spawn(move || {
+                let (d, shared) = (dh as TEMCDevice, sh as TEMCFilter);
+                let mut stale = Vec::new();
+                for i in 0..200 {
+                    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+                    assert!(!f.is_null());
+                    temcRetainFilter(f);
+                    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+                    temcReleaseFilter(f);
+                    assert_eq!(geti(f, "quality"), TEMC_QUALITY_FAST as i32);
+                    temcReleaseFilter(f);
+                    stale.push(f);
+                    // The shared filter stays usable throughout.
+                    assert_eq!(geti(shared, "hdr"), 0, "thread {t}, round {i}");
+                    let b = temcNewBuffer(d, 64);
+                    temcReleaseBuffer(b);
+                    stale.push(b as TEMCFilter);
+                }
+                let mut refused = 0;
+                for f in stale {
+                    temcCommitFilter(f);
+                    let mut msg = std::ptr::null();
+                    if unsafe { temcGetDeviceError(std::ptr::null_mut(), &mut msg) }
+                        == TEMC_ERROR_INVALID_ARGUMENT
+                    {
+                        refused += 1;
+                    }
+                }
+                refused
+            })
+        })
+        .collect();
+    for w in workers {
+        assert_eq!(w.join().unwrap(), 400, "every stale handle is refused");
+    }
+    temcReleaseFilter(shared);
+    temcReleaseDevice(d);
+}
