@@ -24,6 +24,7 @@ install: lib install-only
 install-only:
 	install -d $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(INCLUDEDIR)
 	install -m 644 include/temc.h $(DESTDIR)$(INCLUDEDIR)/temc.h
+	install -m 644 include/temc.hpp $(DESTDIR)$(INCLUDEDIR)/temc.hpp
 	install -m 755 $(LIB)/libtemc.so $(DESTDIR)$(LIBDIR)/libtemc.so.$(VERSION)
 	ln -sf libtemc.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libtemc.so.$(MAJOR)
 	ln -sf libtemc.so.$(MAJOR) $(DESTDIR)$(LIBDIR)/libtemc.so

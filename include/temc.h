@@ -9,23 +9,87 @@
 #include <stddef.h>
 #include <stdint.h>
 
-// Opaque device handle.
+#define TEMC_VERSION_STRING "2.3.0"
+
+#if defined(__cplusplus) && __cplusplus >= 201402L
+#define TEMC_DEPRECATED(msg) [[deprecated(msg)]]
+#elif defined(__GNUC__) || defined(__clang__)
+#define TEMC_DEPRECATED(msg) __attribute__((deprecated(msg)))
+#else
+#define TEMC_DEPRECATED(msg)
+#endif
+
+/* The C API is not in a C++ namespace; TEMC_NAMESPACE names temc.hpp's. */
+#define TEMC_API_NAMESPACE
+#define TEMC_API_NAMESPACE_BEGIN
+#define TEMC_API_NAMESPACE_END
+#define TEMC_API_NAMESPACE_USING
+#define TEMC_NAMESPACE temc
+#define TEMC_NAMESPACE_BEGIN namespace temc {
+#define TEMC_NAMESPACE_END }
+#define TEMC_NAMESPACE_USING using namespace temc;
+
+/* The GPU stream and queue types the per-backend constructors name (they refuse every
+ * GPU with TEMC_ERROR_UNSUPPORTED_HARDWARE, and take them as const void*). */
+typedef struct CUstream_st *cudaStream_t;
+typedef struct ihipStream_t *hipStream_t;
+#if !defined(__OBJC__)
+typedef void *MTLDevice_id;
+typedef void *MTLCommandQueue_id;
+typedef void *MTLBuffer_id;
+#endif
+
+
+// The OIDN API version temc implements: a client's `TEMC_VERSION_MAJOR >= 2` checks
+// take their 2.x path. (The temc library's own version is the device parameter
+// "libraryVersion".)
+#define TEMC_VERSION_MAJOR 2
+
+// Minor version of the OIDN API implemented.
+#define TEMC_VERSION_MINOR 3
+
+// Patch version of the OIDN API implemented.
+#define TEMC_VERSION_PATCH 0
+
+// `major * 10000 + minor * 100 + patch`, as OIDN_VERSION.
+#define TEMC_VERSION 20300
+
+// Bytes in a physical device's UUID.
+#define TEMC_UUID_SIZE 16
+
+// Bytes in a physical device's LUID.
+#define TEMC_LUID_SIZE 8
+
+// Opaque buffer type.
+typedef struct TEMCBufferImpl TEMCBufferImpl;
+
+// Opaque device type (handles are ids, not addresses).
 typedef struct TEMCDeviceImpl TEMCDeviceImpl;
 
-// Opaque filter handle.
+// Opaque filter type.
 typedef struct TEMCFilterImpl TEMCFilterImpl;
 
 // A device handle.
 typedef TEMCDeviceImpl *TEMCDevice;
 
-// Device types.
+// Device types (OIDN's values).
 typedef uint32_t TEMCDeviceType;
 
 // Error codes (OIDN's values).
 typedef uint32_t TEMCError;
 
-// Called with each error as it happens: user pointer, code, message.
+// Called with each error as it happens: user pointer, code, message (valid during the
+// call). No temc lock is held while it runs, so it may call temc functions.
 typedef void (*TEMCErrorFunction)(void *user_ptr, TEMCError code, const char *message);
+
+// A buffer handle.
+typedef TEMCBufferImpl *TEMCBuffer;
+
+// Buffer storage modes. On the CPU device all are host memory the host can access.
+typedef uint32_t TEMCStorage;
+
+// External memory type flags (for the import functions, which the CPU device refuses).
+typedef uint32_t TEMCExternalMemoryTypeFlag;
 
 // A filter handle.
 typedef TEMCFilterImpl *TEMCFilter;
@@ -33,7 +97,8 @@ typedef TEMCFilterImpl *TEMCFilter;
 // Pixel formats.
 typedef uint32_t TEMCFormat;
 
-// Called with the progress in [0, 1]; return false to cancel.
+// Called with the progress in [0, 1]; return false to cancel. It runs while the filter
+// executes: it must not call functions on the same filter.
 typedef bool (*TEMCProgressMonitorFunction)(void *user_ptr, double n);
 
 // Quality modes for the filter's "quality" parameter.
@@ -45,7 +110,7 @@ typedef uint32_t TEMCQuality;
 // An unknown error (e.g. an internal failure).
 #define TEMC_ERROR_UNKNOWN 1
 
-// A parameter is invalid (NULL handle or pointer, unknown name, bad size or stride, ...).
+// A parameter is invalid (NULL or released handle, bad size or stride, ...).
 #define TEMC_ERROR_INVALID_ARGUMENT 2
 
 // The call is not allowed in the current state (e.g. execute before commit).
@@ -54,7 +119,7 @@ typedef uint32_t TEMCQuality;
 // Not enough memory.
 #define TEMC_ERROR_OUT_OF_MEMORY 4
 
-// The hardware is not supported.
+// The hardware is not supported (every GPU device type: temc runs on the CPU).
 #define TEMC_ERROR_UNSUPPORTED_HARDWARE 5
 
 // The progress monitor cancelled the operation.
@@ -66,10 +131,22 @@ typedef uint32_t TEMCQuality;
 // The CPU.
 #define TEMC_DEVICE_TYPE_CPU 1
 
+// SYCL (not supported: TEMC_ERROR_UNSUPPORTED_HARDWARE).
+#define TEMC_DEVICE_TYPE_SYCL 2
+
+// CUDA (not supported).
+#define TEMC_DEVICE_TYPE_CUDA 3
+
+// HIP (not supported).
+#define TEMC_DEVICE_TYPE_HIP 4
+
+// Metal (not supported).
+#define TEMC_DEVICE_TYPE_METAL 5
+
 // No format.
 #define TEMC_FORMAT_UNDEFINED 0
 
-// One 32-bit float channel.
+// One 32-bit float channel (also the band type of a "spectral" image).
 #define TEMC_FORMAT_FLOAT 1
 
 // Two 32-bit float channels.
@@ -81,7 +158,7 @@ typedef uint32_t TEMCQuality;
 // Four 32-bit float channels (the fourth is ignored).
 #define TEMC_FORMAT_FLOAT4 4
 
-// One 16-bit float channel.
+// One 16-bit float channel (also a "spectral" band type).
 #define TEMC_FORMAT_HALF 257
 
 // Two 16-bit float channels.
@@ -93,7 +170,53 @@ typedef uint32_t TEMCQuality;
 // Four 16-bit float channels (the fourth is ignored).
 #define TEMC_FORMAT_HALF4 260
 
-// The library's default (balanced).
+// No storage given (host).
+#define TEMC_STORAGE_UNDEFINED 0
+
+// Host memory.
+#define TEMC_STORAGE_HOST 1
+
+// Device memory (host memory on the CPU device).
+#define TEMC_STORAGE_DEVICE 2
+
+// Managed memory (host memory on the CPU device).
+#define TEMC_STORAGE_MANAGED 3
+
+// No external memory type.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_NONE 0
+
+// An opaque POSIX file descriptor.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_FD (1 << 0)
+
+// A Linux dma_buf file descriptor.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_DMA_BUF (1 << 1)
+
+// An NT handle.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_WIN32 (1 << 2)
+
+// A global share (KMT) handle.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_WIN32_KMT (1 << 3)
+
+// An NT handle to a Direct3D 11 texture.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_TEXTURE (1 << 4)
+
+// A KMT handle to a Direct3D 11 texture.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_TEXTURE_KMT (1 << 5)
+
+// An NT handle to a Direct3D 11 resource.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_RESOURCE (1 << 6)
+
+// A KMT handle to a Direct3D 11 resource.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_RESOURCE_KMT (1 << 7)
+
+// An NT handle to a Direct3D 12 heap.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_HEAP (1 << 8)
+
+// An NT handle to a Direct3D 12 committed resource.
+#define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_RESOURCE (1 << 9)
+
+// The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
+// temc types.
 #define TEMC_QUALITY_DEFAULT 0
 
 // Fastest.
@@ -109,39 +232,315 @@ typedef uint32_t TEMCQuality;
 extern "C" {
 #endif // __cplusplus
 
-// Creates a device of the given type (TEMC_DEVICE_TYPE_DEFAULT or TEMC_DEVICE_TYPE_CPU).
-// Returns NULL on failure; temcGetDeviceError(NULL, ...) then says why.
+// Returns the number of physical devices: 1 (the CPU).
+int32_t temcGetNumPhysicalDevices(void);
+
+// Reads a bool parameter of a physical device: "uuidSupported", "luidSupported",
+// "pciAddressSupported" (all false for the CPU).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+bool temcGetPhysicalDeviceBool(int32_t id, const char *name);
+
+// Reads an int parameter of a physical device: "type" (TEMC_DEVICE_TYPE_CPU).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+int32_t temcGetPhysicalDeviceInt(int32_t id, const char *name);
+
+// Reads an unsigned int parameter of a physical device (as temcGetPhysicalDeviceInt).
+//
+// # Safety
+// As temcGetPhysicalDeviceInt.
+uint32_t temcGetPhysicalDeviceUInt(int32_t id, const char *name);
+
+// Reads a string parameter of a physical device: "name" (the CPU model). The string lives
+// as long as the process.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+const char *temcGetPhysicalDeviceString(int32_t id, const char *name);
+
+// Reads opaque data of a physical device ("uuid", "luid"): the CPU device has none, so
+// this returns NULL with an error, and 0 in `byte_size` (may be NULL).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string; `byte_size` NULL or writable.
+const void *temcGetPhysicalDeviceData(int32_t id, const char *name, uintptr_t *byte_size);
+
+// Returns whether the CPU device is supported: true.
+bool temcIsCPUDeviceSupported(void);
+
+// Returns whether a SYCL device is supported: false.
+bool temcIsSYCLDeviceSupported(const void *_device);
+
+// Returns whether a CUDA device is supported: false.
+bool temcIsCUDADeviceSupported(int32_t _device_id);
+
+// Returns whether a HIP device is supported: false.
+bool temcIsHIPDeviceSupported(int32_t _device_id);
+
+// Returns whether a Metal device is supported: false.
+bool temcIsMetalDeviceSupported(void *_device);
+
+// Creates a device: TEMC_DEVICE_TYPE_DEFAULT or _CPU. The GPU types give NULL with
+// TEMC_ERROR_UNSUPPORTED_HARDWARE, other values TEMC_ERROR_INVALID_ARGUMENT;
+// temcGetDeviceError(NULL, ...) says why.
 TEMCDevice temcNewDevice(TEMCDeviceType device_type);
 
-// Commits the device's parameters (builds its thread pool). Required before filters run.
-void temcCommitDevice(TEMCDevice device);
+// Creates a device from a physical device ID (0, the CPU).
+TEMCDevice temcNewDeviceByID(int32_t physical_device_id);
 
-// Sets a device parameter: "numThreads" (0 = all cores), "verbose".
-void temcSetDeviceInt(TEMCDevice device, const char *name, int32_t value);
+// Creates a device from a physical device's UUID: the CPU has none, so this gives NULL
+// with TEMC_ERROR_INVALID_ARGUMENT.
+TEMCDevice temcNewDeviceByUUID(const void *_uuid);
 
-// Reads a device parameter: "numThreads", "verbose", "version" (major*10000+minor*100+patch).
-int32_t temcGetDeviceInt(TEMCDevice device, const char *name);
+// Creates a device from a physical device's LUID: NULL, as temcNewDeviceByUUID.
+TEMCDevice temcNewDeviceByLUID(const void *_luid);
 
-// Registers a function called with every error of this device (NULL removes it).
-void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void *user_ptr);
+// Creates a device from a PCI address: NULL, as temcNewDeviceByUUID.
+TEMCDevice temcNewDeviceByPCIAddress(int32_t _pci_domain,
+                                     int32_t _pci_bus,
+                                     int32_t _pci_device,
+                                     int32_t _pci_function);
 
-// Returns the first error not yet queried and clears it; `out_message` (may be NULL)
-// receives its text, valid until the next call. A NULL device returns errors that had no
-// device (device creation, NULL or released handles) on this thread.
-TEMCError temcGetDeviceError(TEMCDevice device, const char **out_message);
+// Creates a SYCL device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+TEMCDevice temcNewSYCLDevice(const void *_queues, int32_t _num_queues);
+
+// Creates a CUDA device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+TEMCDevice temcNewCUDADevice(const int32_t *_device_ids, const void *_streams, int32_t _num_pairs);
+
+// Creates a HIP device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+TEMCDevice temcNewHIPDevice(const int32_t *_device_ids, const void *_streams, int32_t _num_pairs);
+
+// Creates a Metal device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+TEMCDevice temcNewMetalDevice(const void *_command_queues, int32_t _num_queues);
 
 // Adds a reference to the device.
 void temcRetainDevice(TEMCDevice device);
 
-// Drops a reference; the device is freed with its last reference (filters hold one).
+// Drops a reference; with the last one the handle is dead (filters and buffers made on
+// the device keep what they need of it until they are released too).
 void temcReleaseDevice(TEMCDevice device);
 
-// Creates a filter: "TEMC2" (the default choice), "TEMC1", "DEMC" or "AE".
+// Commits the device's parameters (builds its thread pool). Required before filters run.
+void temcCommitDevice(TEMCDevice device);
+
+// Waits for the device's asynchronous operations: they all complete before returning, so
+// this only checks the handle.
+void temcSyncDevice(TEMCDevice device);
+
+// Sets an int (or bool) device parameter: "numThreads" (0 = all cores), "verbose",
+// "setAffinity". Unknown names are ignored with a warning (printed when verbose).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+void temcSetDeviceInt(TEMCDevice device, const char *name, int32_t value);
+
+// Sets a bool device parameter (as temcSetDeviceInt with 0 or 1).
+//
+// # Safety
+// As temcSetDeviceInt.
+void temcSetDeviceBool(TEMCDevice device, const char *name, bool value);
+
+// Sets an unsigned int device parameter (as temcSetDeviceInt).
+//
+// # Safety
+// As temcSetDeviceInt.
+void temcSetDeviceUInt(TEMCDevice device, const char *name, uint32_t value);
+
+// Deprecated OIDN 1.x name of temcSetDeviceBool.
+//
+// # Safety
+// As temcSetDeviceInt.
+void temcSetDevice1b(TEMCDevice device, const char *name, bool value);
+
+// Deprecated OIDN 1.x name of temcSetDeviceInt.
+//
+// # Safety
+// As temcSetDeviceInt.
+void temcSetDevice1i(TEMCDevice device, const char *name, int32_t value);
+
+// Reads an int (or bool) device parameter: "type", "version" (TEMC_VERSION),
+// "versionMajor", "versionMinor", "versionPatch", "libraryVersion" (temc's own,
+// major*10000+minor*100+patch), "numThreads", "verbose", "setAffinity",
+// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes". Unknown
+// names read 0 with a warning.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+int32_t temcGetDeviceInt(TEMCDevice device, const char *name);
+
+// Reads a bool device parameter (as temcGetDeviceInt, != 0).
+//
+// # Safety
+// As temcGetDeviceInt.
+bool temcGetDeviceBool(TEMCDevice device, const char *name);
+
+// Reads an unsigned int device parameter (as temcGetDeviceInt).
+//
+// # Safety
+// As temcGetDeviceInt.
+uint32_t temcGetDeviceUInt(TEMCDevice device, const char *name);
+
+// Deprecated OIDN 1.x name of temcGetDeviceBool.
+//
+// # Safety
+// As temcGetDeviceInt.
+bool temcGetDevice1b(TEMCDevice device, const char *name);
+
+// Deprecated OIDN 1.x name of temcGetDeviceInt.
+//
+// # Safety
+// As temcGetDeviceInt.
+int32_t temcGetDevice1i(TEMCDevice device, const char *name);
+
+// Registers a function called with every error of this device (NULL removes it). It is
+// called with no temc lock held, so it may call temcGetDeviceError.
+//
+// # Safety
+// `func` must be safe to call with `user_ptr` from any thread that uses the device, until
+// it is replaced or the device is gone.
+void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void *user_ptr);
+
+// Returns the first error not yet queried and clears it; `out_message` (may be NULL)
+// receives its text (NULL for no error), valid until the next query. A NULL device
+// returns this thread's errors that had no device (device creation, NULL or released
+// handles, physical device queries).
+//
+// # Safety
+// `out_message` must be NULL or writable.
+TEMCError temcGetDeviceError(TEMCDevice device, const char **out_message);
+
+// Creates a zeroed host buffer of `byte_size` bytes.
+TEMCBuffer temcNewBuffer(TEMCDevice device, uintptr_t byte_size);
+
+// Creates a buffer with a storage mode; every mode is host memory on the CPU device (the
+// host may use temcGetBufferData for all of them).
+TEMCBuffer temcNewBufferWithStorage(TEMCDevice device, uintptr_t byte_size, TEMCStorage storage);
+
+// Creates a buffer over the caller's memory (no copy).
+//
+// # Safety
+// `ptr` must be valid for reads and writes of `byte_size` bytes for the buffer's lifetime
+// (until its last release, and while a filter has an image of it set).
+TEMCBuffer temcNewSharedBuffer(TEMCDevice device, void *ptr, uintptr_t byte_size);
+
+// Imports external memory from a file descriptor: not supported on the CPU device (NULL,
+// TEMC_ERROR_INVALID_OPERATION).
+TEMCBuffer temcNewSharedBufferFromFD(TEMCDevice device,
+                                     TEMCExternalMemoryTypeFlag _fd_type,
+                                     int32_t _fd,
+                                     uintptr_t _byte_size);
+
+// Imports external memory from a Win32 handle: not supported (as temcNewSharedBufferFromFD).
+TEMCBuffer temcNewSharedBufferFromWin32Handle(TEMCDevice device,
+                                              TEMCExternalMemoryTypeFlag _handle_type,
+                                              void *_handle,
+                                              const void *_name,
+                                              uintptr_t _byte_size);
+
+// Wraps a Metal buffer: not supported (as temcNewSharedBufferFromFD).
+TEMCBuffer temcNewSharedBufferFromMetal(TEMCDevice device, void *_buffer);
+
+// Returns the buffer's size in bytes (0 on error).
+uintptr_t temcGetBufferSize(TEMCBuffer buffer);
+
+// Returns the buffer's storage mode.
+TEMCStorage temcGetBufferStorage(TEMCBuffer buffer);
+
+// Returns the buffer's data, host-accessible (NULL for an empty buffer or on error).
+void *temcGetBufferData(TEMCBuffer buffer);
+
+// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
+//
+// # Safety
+// `dst_host_ptr` must be writable for `byte_size` bytes.
+void temcReadBuffer(TEMCBuffer buffer,
+                    uintptr_t byte_offset,
+                    uintptr_t byte_size,
+                    void *dst_host_ptr);
+
+// temcReadBuffer; complete on return (the CPU device runs everything synchronously).
+//
+// # Safety
+// As temcReadBuffer.
+void temcReadBufferAsync(TEMCBuffer buffer,
+                         uintptr_t byte_offset,
+                         uintptr_t byte_size,
+                         void *dst_host_ptr);
+
+// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`.
+//
+// # Safety
+// `src_host_ptr` must be readable for `byte_size` bytes.
+void temcWriteBuffer(TEMCBuffer buffer,
+                     uintptr_t byte_offset,
+                     uintptr_t byte_size,
+                     const void *src_host_ptr);
+
+// temcWriteBuffer; complete on return.
+//
+// # Safety
+// As temcWriteBuffer.
+void temcWriteBufferAsync(TEMCBuffer buffer,
+                          uintptr_t byte_offset,
+                          uintptr_t byte_size,
+                          const void *src_host_ptr);
+
+// Adds a reference to the buffer.
+void temcRetainBuffer(TEMCBuffer buffer);
+
+// Drops a reference; the memory goes with the last one, or later while a filter still
+// has an image of it set.
+void temcReleaseBuffer(TEMCBuffer buffer);
+
+// Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
+// given only "albedo" or only "normal" and an "output", it denoises that aux image),
+// "RTLightmap" (TEMC-2 on HDR colour; "directional" must stay false), or temc's
+// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced).
+//
+// # Safety
+// `filter_type` must be NULL or a NUL-terminated string.
 TEMCFilter temcNewFilter(TEMCDevice device, const char *filter_type);
 
-// Sets an image shared with the caller ("color", "albedo", "normal", "depth", "output").
-// Strides of 0 mean tightly packed. The buffer must stay valid until the image is unset or
-// the filter released; "output" may be the same buffer as "color" (in-place).
+// Adds a reference to the filter.
+void temcRetainFilter(TEMCFilter filter);
+
+// Drops a reference; the filter (with its hold on the device and buffers) goes with the
+// last one, after any execution still running on another thread.
+void temcReleaseFilter(TEMCFilter filter);
+
+// Sets an image stored in a buffer (which the filter holds while the image is set).
+// Names: "color", "albedo", "normal", "depth", "output", "spectral" (see
+// temcSetSharedFilterImage). Strides of 0 mean tightly packed.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
+void temcSetFilterImage(TEMCFilter filter,
+                        const char *name,
+                        TEMCBuffer buffer,
+                        TEMCFormat format,
+                        uintptr_t width,
+                        uintptr_t height,
+                        uintptr_t byte_offset,
+                        uintptr_t pixel_byte_stride,
+                        uintptr_t row_byte_stride);
+
+// Sets an image in the caller's memory: "color" (linear RGB; sRGB-encoded with "srgb"
+// and "hdr" false), "albedo", "normal", "depth" (1 channel), "output" (may be the same
+// memory as "color": in-place), or "spectral": N bands per pixel of one float type
+// (`format` TEMC_FORMAT_FLOAT or TEMC_FORMAT_HALF is the type of one band), N the
+// filter's int "spectralBands", the bands splitting [float "spectralMin", float
+// "spectralMax"] nm (default 380..780) evenly, each band's value its mean spectral
+// radiance; temc converts it with the CIE 1931 colour matching functions to linear sRGB
+// and denoises that (set "spectral" instead of "color"). A pixel stride of 0 means N
+// packed bands. Unknown names are ignored with a warning.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string; `dev_ptr` must be valid for reads (and
+// writes, for "output") of the bytes the layout spans, from this call until the image is
+// unset or the filter released.
 void temcSetSharedFilterImage(TEMCFilter filter,
                               const char *name,
                               void *dev_ptr,
@@ -153,37 +552,130 @@ void temcSetSharedFilterImage(TEMCFilter filter,
                               uintptr_t row_byte_stride);
 
 // Removes an image from the filter.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 void temcUnsetFilterImage(TEMCFilter filter, const char *name);
 
-// Sets opaque data: "weights" = a temc ONNX model (copied; the buffer may be freed after).
+// Deprecated OIDN 1.x name of temcUnsetFilterImage.
+//
+// # Safety
+// As temcUnsetFilterImage.
+void temcRemoveFilterImage(TEMCFilter filter, const char *name);
+
+// Sets opaque data: "weights" = a temc ONNX model (copied now and at each
+// temcUpdateFilterData).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string; `host_ptr` readable for `byte_size`
+// bytes now and at every temcUpdateFilterData until the data is unset.
 void temcSetSharedFilterData(TEMCFilter filter,
                              const char *name,
                              void *host_ptr,
                              uintptr_t byte_size);
 
+// Tells the filter that opaque data changed in place (re-reads "weights"; commit again).
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string; the data's memory still readable.
+void temcUpdateFilterData(TEMCFilter filter, const char *name);
+
 // Removes opaque data ("weights").
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 void temcUnsetFilterData(TEMCFilter filter, const char *name);
 
-// Sets a boolean parameter: "hdr".
-void temcSetFilterBool(TEMCFilter filter, const char *name, bool value);
+// Deprecated OIDN 1.x name of temcUnsetFilterData.
+//
+// # Safety
+// As temcUnsetFilterData.
+void temcRemoveFilterData(TEMCFilter filter, const char *name);
 
-// Reads a boolean parameter: "hdr".
-bool temcGetFilterBool(TEMCFilter filter, const char *name);
-
-// Sets an integer parameter: "quality" (TEMC_QUALITY_*), "maxMemoryMB".
+// Sets an int (or bool: OIDN treats them alike) parameter. Bools: "hdr", "srgb",
+// "cleanAux" (accepted; temc uses the aux as given), "directional" (RTLightmap; true is
+// refused). Ints: "quality" (TEMC_QUALITY_*), "maxMemoryMB" (-1: the default budget),
+// "tileSize", "spectralBands". Unknown names are ignored with a warning.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 void temcSetFilterInt(TEMCFilter filter, const char *name, int32_t value);
 
-// Reads an integer parameter: "quality", "maxMemoryMB".
+// Sets a bool parameter (as temcSetFilterInt with 0 or 1).
+//
+// # Safety
+// As temcSetFilterInt.
+void temcSetFilterBool(TEMCFilter filter, const char *name, bool value);
+
+// Reads an int (or bool) parameter: those of temcSetFilterInt, and the read-only
+// "alignment" and "overlap" (also "tileAlignment", "tileOverlap") of the committed
+// model (0 before commit). Unknown names read 0 with a warning.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 int32_t temcGetFilterInt(TEMCFilter filter, const char *name);
 
-// Sets a float parameter: "inputScale" (NaN = automatic exposure).
+// Reads a bool parameter (as temcGetFilterInt, != 0).
+//
+// # Safety
+// As temcGetFilterInt.
+bool temcGetFilterBool(TEMCFilter filter, const char *name);
+
+// Sets a float parameter: "inputScale" (NaN = automatic exposure), its OIDN 1.x alias
+// "hdrScale", "spectralMin", "spectralMax" (nm). Unknown names: a warning.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 void temcSetFilterFloat(TEMCFilter filter, const char *name, float value);
 
-// Reads a float parameter: "inputScale" (NaN while automatic).
+// Reads a float parameter ("inputScale" is NaN while automatic); unknown names read 0.
+//
+// # Safety
+// `name` must be NULL or a NUL-terminated string.
 float temcGetFilterFloat(TEMCFilter filter, const char *name);
+
+// Deprecated OIDN 1.x name of temcSetFilterBool.
+//
+// # Safety
+// As temcSetFilterInt.
+void temcSetFilter1b(TEMCFilter filter, const char *name, bool value);
+
+// Deprecated OIDN 1.x name of temcGetFilterBool.
+//
+// # Safety
+// As temcGetFilterInt.
+bool temcGetFilter1b(TEMCFilter filter, const char *name);
+
+// Deprecated OIDN 1.x name of temcSetFilterInt.
+//
+// # Safety
+// As temcSetFilterInt.
+void temcSetFilter1i(TEMCFilter filter, const char *name, int32_t value);
+
+// Deprecated OIDN 1.x name of temcGetFilterInt.
+//
+// # Safety
+// As temcGetFilterInt.
+int32_t temcGetFilter1i(TEMCFilter filter, const char *name);
+
+// Deprecated OIDN 1.x name of temcSetFilterFloat.
+//
+// # Safety
+// As temcSetFilterFloat.
+void temcSetFilter1f(TEMCFilter filter, const char *name, float value);
+
+// Deprecated OIDN 1.x name of temcGetFilterFloat.
+//
+// # Safety
+// As temcGetFilterFloat.
+float temcGetFilter1f(TEMCFilter filter, const char *name);
 
 // Sets the progress monitor (NULL removes it); returning false from it cancels execution
 // with TEMC_ERROR_CANCELLED and leaves the output untouched.
+//
+// # Safety
+// `func` must be safe to call with `user_ptr` from temc's worker threads while the filter
+// executes, until it is replaced or the filter released.
 void temcSetFilterProgressMonitorFunction(TEMCFilter filter,
                                           TEMCProgressMonitorFunction func,
                                           void *user_ptr);
@@ -191,14 +683,18 @@ void temcSetFilterProgressMonitorFunction(TEMCFilter filter,
 // Commits the filter's parameters (loads the model). Required after changes.
 void temcCommitFilter(TEMCFilter filter);
 
-// Runs the filter synchronously. On error nothing is written to the output.
+// Runs the filter. On error nothing is written to the output.
 void temcExecuteFilter(TEMCFilter filter);
 
-// Adds a reference to the filter.
-void temcRetainFilter(TEMCFilter filter);
+// temcExecuteFilter; complete on return (the CPU device runs synchronously), so
+// temcSyncDevice has nothing to wait for.
+void temcExecuteFilterAsync(TEMCFilter filter);
 
-// Drops a reference; the filter (and its hold on the device) goes with the last one.
-void temcReleaseFilter(TEMCFilter filter);
+// Executes on a SYCL queue: not possible on the CPU device (TEMC_ERROR_INVALID_OPERATION).
+void temcExecuteSYCLFilterAsync(TEMCFilter filter,
+                                const void *_dep_events,
+                                int32_t _num_dep_events,
+                                void *_done_event);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -1,29 +1,51 @@
-//! The C ABI, mirroring Intel Open Image Denoise 2.x with the prefix `temc`/`TEMC_`.
+//! The C ABI: Intel Open Image Denoise 2.x's API with the prefix `temc`/`TEMC_`.
 //!
-//! A thin shim over [`crate::filter`]: every entry point runs inside `catch_unwind`, turns
-//! each failure into an error code with a message stored on the device (OIDN's
-//! `oidnGetDeviceError` model: the first error is kept until queried), and never lets a
-//! panic cross into C. Handles are checked against a registry of live objects, so NULL,
-//! foreign and released handles are reported as errors instead of being dereferenced.
-//! `include/temc.h` is generated from this file by cbindgen (`tests/c_header.rs`).
+//! A client written against `oidn.h` (or `oidn.hpp`, see `include/temc.hpp`) builds against
+//! `include/temc.h` after renaming oidn/OIDN to temc/TEMC, with OIDN's semantics on a
+//! CPU-only device: buffers live in host memory (shared buffers wrap the caller's), the
+//! asynchronous calls complete before they return, there is one physical device (the CPU),
+//! and the GPU device types give TEMC_ERROR_UNSUPPORTED_HARDWARE. Filter types are OIDN's
+//! "RT" and "RTLightmap" (TEMC-2) and temc's "TEMC2", "TEMC1", "DEMC", "AE".
+//!
+//! Soundness: handles are generation-tagged ids looked up in a registry (`registry`), so a
+//! released or foreign handle is an error, never a dereference, and an object stays alive
+//! while any call uses it. Every entry point runs in one guard (`objects::guarded`) that
+//! catches panics and records failures; the error function is called with no lock held.
+//! Entry points that read or write through caller pointers are `unsafe` and say what they
+//! need. `include/temc.h` is generated from this file by cbindgen (`tests/c_header.rs`).
 
-// Handles are dereferenced only after the registry has confirmed they are live, which is
-// why the entry points taking them are safe functions for C.
-#![allow(
-    non_camel_case_types,
-    clippy::missing_safety_doc,
-    clippy::not_unsafe_ptr_arg_deref
-)]
+#![allow(non_camel_case_types)]
 
-use std::collections::HashSet;
-use std::ffi::{c_char, c_void, CStr, CString};
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, OnceLock};
+mod filter_state;
+mod objects;
+mod registry;
 
-use crate::filter::{Device, Filter};
+use std::ffi::{c_char, c_void, CString};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex, OnceLock};
+
 use crate::image::{Format, Layout};
-use crate::Error;
+use filter_state::FilterState;
+use objects::{
+    affinity, guarded, name_arg, take_error, BufferObj, DeviceObj, Failure, FilterObj, Outcome,
+    BUFFERS, DEVICES, FILTERS,
+};
+
+/// The OIDN API version temc implements: a client's `TEMC_VERSION_MAJOR >= 2` checks
+/// take their 2.x path. (The temc library's own version is the device parameter
+/// "libraryVersion".)
+pub const TEMC_VERSION_MAJOR: u32 = 2;
+/// Minor version of the OIDN API implemented.
+pub const TEMC_VERSION_MINOR: u32 = 3;
+/// Patch version of the OIDN API implemented.
+pub const TEMC_VERSION_PATCH: u32 = 0;
+/// `major * 10000 + minor * 100 + patch`, as OIDN_VERSION.
+pub const TEMC_VERSION: u32 = 20300;
+
+/// Bytes in a physical device's UUID.
+pub const TEMC_UUID_SIZE: usize = 16;
+/// Bytes in a physical device's LUID.
+pub const TEMC_LUID_SIZE: usize = 8;
 
 /// Error codes (OIDN's values).
 pub type TEMCError = u32;
@@ -31,29 +53,37 @@ pub type TEMCError = u32;
 pub const TEMC_ERROR_NONE: TEMCError = 0;
 /// An unknown error (e.g. an internal failure).
 pub const TEMC_ERROR_UNKNOWN: TEMCError = 1;
-/// A parameter is invalid (NULL handle or pointer, unknown name, bad size or stride, ...).
+/// A parameter is invalid (NULL or released handle, bad size or stride, ...).
 pub const TEMC_ERROR_INVALID_ARGUMENT: TEMCError = 2;
 /// The call is not allowed in the current state (e.g. execute before commit).
 pub const TEMC_ERROR_INVALID_OPERATION: TEMCError = 3;
 /// Not enough memory.
 pub const TEMC_ERROR_OUT_OF_MEMORY: TEMCError = 4;
-/// The hardware is not supported.
+/// The hardware is not supported (every GPU device type: temc runs on the CPU).
 pub const TEMC_ERROR_UNSUPPORTED_HARDWARE: TEMCError = 5;
 /// The progress monitor cancelled the operation.
 pub const TEMC_ERROR_CANCELLED: TEMCError = 6;
 
-/// Device types.
+/// Device types (OIDN's values).
 pub type TEMCDeviceType = u32;
 /// The default device (the CPU).
 pub const TEMC_DEVICE_TYPE_DEFAULT: TEMCDeviceType = 0;
 /// The CPU.
 pub const TEMC_DEVICE_TYPE_CPU: TEMCDeviceType = 1;
+/// SYCL (not supported: TEMC_ERROR_UNSUPPORTED_HARDWARE).
+pub const TEMC_DEVICE_TYPE_SYCL: TEMCDeviceType = 2;
+/// CUDA (not supported).
+pub const TEMC_DEVICE_TYPE_CUDA: TEMCDeviceType = 3;
+/// HIP (not supported).
+pub const TEMC_DEVICE_TYPE_HIP: TEMCDeviceType = 4;
+/// Metal (not supported).
+pub const TEMC_DEVICE_TYPE_METAL: TEMCDeviceType = 5;
 
 /// Pixel formats.
 pub type TEMCFormat = u32;
 /// No format.
 pub const TEMC_FORMAT_UNDEFINED: TEMCFormat = 0;
-/// One 32-bit float channel.
+/// One 32-bit float channel (also the band type of a "spectral" image).
 pub const TEMC_FORMAT_FLOAT: TEMCFormat = 1;
 /// Two 32-bit float channels.
 pub const TEMC_FORMAT_FLOAT2: TEMCFormat = 2;
@@ -61,7 +91,7 @@ pub const TEMC_FORMAT_FLOAT2: TEMCFormat = 2;
 pub const TEMC_FORMAT_FLOAT3: TEMCFormat = 3;
 /// Four 32-bit float channels (the fourth is ignored).
 pub const TEMC_FORMAT_FLOAT4: TEMCFormat = 4;
-/// One 16-bit float channel.
+/// One 16-bit float channel (also a "spectral" band type).
 pub const TEMC_FORMAT_HALF: TEMCFormat = 257;
 /// Two 16-bit float channels.
 pub const TEMC_FORMAT_HALF2: TEMCFormat = 258;
@@ -70,9 +100,46 @@ pub const TEMC_FORMAT_HALF3: TEMCFormat = 259;
 /// Four 16-bit float channels (the fourth is ignored).
 pub const TEMC_FORMAT_HALF4: TEMCFormat = 260;
 
+/// Buffer storage modes. On the CPU device all are host memory the host can access.
+pub type TEMCStorage = u32;
+/// No storage given (host).
+pub const TEMC_STORAGE_UNDEFINED: TEMCStorage = 0;
+/// Host memory.
+pub const TEMC_STORAGE_HOST: TEMCStorage = 1;
+/// Device memory (host memory on the CPU device).
+pub const TEMC_STORAGE_DEVICE: TEMCStorage = 2;
+/// Managed memory (host memory on the CPU device).
+pub const TEMC_STORAGE_MANAGED: TEMCStorage = 3;
+
+/// External memory type flags (for the import functions, which the CPU device refuses).
+pub type TEMCExternalMemoryTypeFlag = u32;
+/// No external memory type.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_NONE: TEMCExternalMemoryTypeFlag = 0;
+/// An opaque POSIX file descriptor.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_FD: TEMCExternalMemoryTypeFlag = 1 << 0;
+/// A Linux dma_buf file descriptor.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_DMA_BUF: TEMCExternalMemoryTypeFlag = 1 << 1;
+/// An NT handle.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_WIN32: TEMCExternalMemoryTypeFlag = 1 << 2;
+/// A global share (KMT) handle.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_OPAQUE_WIN32_KMT: TEMCExternalMemoryTypeFlag = 1 << 3;
+/// An NT handle to a Direct3D 11 texture.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_TEXTURE: TEMCExternalMemoryTypeFlag = 1 << 4;
+/// A KMT handle to a Direct3D 11 texture.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_TEXTURE_KMT: TEMCExternalMemoryTypeFlag = 1 << 5;
+/// An NT handle to a Direct3D 11 resource.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_RESOURCE: TEMCExternalMemoryTypeFlag = 1 << 6;
+/// A KMT handle to a Direct3D 11 resource.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D11_RESOURCE_KMT: TEMCExternalMemoryTypeFlag = 1 << 7;
+/// An NT handle to a Direct3D 12 heap.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_HEAP: TEMCExternalMemoryTypeFlag = 1 << 8;
+/// An NT handle to a Direct3D 12 committed resource.
+pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_RESOURCE: TEMCExternalMemoryTypeFlag = 1 << 9;
+
 /// Quality modes for the filter's "quality" parameter.
 pub type TEMCQuality = u32;
-/// The library's default (balanced).
+/// The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
+/// temc types.
 pub const TEMC_QUALITY_DEFAULT: TEMCQuality = 0;
 /// Fastest.
 pub const TEMC_QUALITY_FAST: TEMCQuality = 4;
@@ -81,391 +148,914 @@ pub const TEMC_QUALITY_BALANCED: TEMCQuality = 5;
 /// Highest quality.
 pub const TEMC_QUALITY_HIGH: TEMCQuality = 6;
 
-/// Called with each error as it happens: user pointer, code, message.
+/// Called with each error as it happens: user pointer, code, message (valid during the
+/// call). No temc lock is held while it runs, so it may call temc functions.
 pub type TEMCErrorFunction =
     Option<unsafe extern "C" fn(user_ptr: *mut c_void, code: TEMCError, message: *const c_char)>;
 
-/// Called with the progress in [0, 1]; return false to cancel.
+/// Called with the progress in [0, 1]; return false to cancel. It runs while the filter
+/// executes: it must not call functions on the same filter.
 pub type TEMCProgressMonitorFunction =
     Option<unsafe extern "C" fn(user_ptr: *mut c_void, n: f64) -> bool>;
 
-struct ErrorState {
-    first: Option<(TEMCError, CString)>,
-    /// The message last handed out by temcGetDeviceError; valid until the next query.
-    returned: CString,
-    callback: TEMCErrorFunction,
-    user_ptr: usize,
-}
-
-/// Opaque device handle.
+/// Opaque device type (handles are ids, not addresses).
 pub struct TEMCDeviceImpl {
-    refs: AtomicUsize,
-    device: Device,
-    errors: Mutex<ErrorState>,
+    _opaque: [u8; 0],
 }
 
-/// Opaque filter handle.
+/// Opaque filter type.
 pub struct TEMCFilterImpl {
-    refs: AtomicUsize,
-    device: *mut TEMCDeviceImpl,
-    filter: Mutex<Filter<'static>>,
+    _opaque: [u8; 0],
+}
+
+/// Opaque buffer type.
+pub struct TEMCBufferImpl {
+    _opaque: [u8; 0],
 }
 
 /// A device handle.
 pub type TEMCDevice = *mut TEMCDeviceImpl;
 /// A filter handle.
 pub type TEMCFilter = *mut TEMCFilterImpl;
+/// A buffer handle.
+pub type TEMCBuffer = *mut TEMCBufferImpl;
 
-fn live() -> &'static Mutex<HashSet<usize>> {
-    static LIVE: OnceLock<Mutex<HashSet<usize>>> = OnceLock::new();
-    LIVE.get_or_init(|| Mutex::new(HashSet::new()))
+fn handle<T>(id: usize) -> *mut T {
+    std::ptr::without_provenance_mut(id)
 }
 
-fn is_live(p: usize) -> bool {
-    live()
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .contains(&p)
+fn new_device() -> Outcome<TEMCDevice> {
+    DEVICES
+        .insert(DeviceObj::new())
+        .map(handle)
+        .ok_or_else(|| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, "too many devices"))
 }
 
-thread_local! {
-    /// Errors with no device to hold them (device creation, NULL device).
-    static GLOBAL_ERROR: std::cell::RefCell<(Option<(TEMCError, CString)>, CString)> =
-        std::cell::RefCell::new((None, CString::default()));
+fn gpu_unsupported<T>(what: &str) -> Outcome<T> {
+    Err(Failure::unsupported(format!(
+        "{what} devices are not supported: temc runs on the CPU (use TEMC_DEVICE_TYPE_CPU)"
+    )))
 }
 
-fn code(e: &Error) -> TEMCError {
-    match e {
-        Error::InvalidArgument(_) | Error::Model(_) | Error::Io { .. } => {
-            TEMC_ERROR_INVALID_ARGUMENT
+// ---------------------------------------------------------------------------------------
+// Physical devices: one, the CPU.
+
+/// Returns the number of physical devices: 1 (the CPU).
+#[no_mangle]
+pub extern "C" fn temcGetNumPhysicalDevices() -> i32 {
+    1
+}
+
+fn physical(id: i32) -> Outcome<()> {
+    if id == 0 {
+        Ok(())
+    } else {
+        Err(Failure::invalid(format!(
+            "invalid physical device ID {id} (only 0, the CPU)"
+        )))
+    }
+}
+
+fn cpu_name() -> &'static CString {
+    static NAME: OnceLock<CString> = OnceLock::new();
+    NAME.get_or_init(|| {
+        let model = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("model name"))
+                    .and_then(|l| l.split(':').nth(1))
+                    .map(|m| m.trim().to_string())
+            })
+            .unwrap_or_else(|| "CPU".into());
+        CString::new(model).unwrap_or_default()
+    })
+}
+
+/// Reads a bool parameter of a physical device: "uuidSupported", "luidSupported",
+/// "pciAddressSupported" (all false for the CPU).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetPhysicalDeviceBool(id: i32, name: *const c_char) -> bool {
+    guarded(false, |_| {
+        physical(id)?;
+        // SAFETY: the caller's contract.
+        match unsafe { name_arg(name) }? {
+            "uuidSupported" | "luidSupported" | "pciAddressSupported" => Ok(false),
+            other => Err(Failure::invalid(format!(
+                "unknown physical device parameter {other:?}"
+            ))),
         }
-        Error::InvalidOperation(_) => TEMC_ERROR_INVALID_OPERATION,
-        Error::Cancelled => TEMC_ERROR_CANCELLED,
-        Error::OutOfMemory(_) => TEMC_ERROR_OUT_OF_MEMORY,
-        Error::Inference(_) => TEMC_ERROR_UNKNOWN,
-    }
+    })
 }
 
-fn cstring(s: String) -> CString {
-    CString::new(s.replace('\0', " ")).unwrap_or_default()
-}
-
-fn record(device: Option<&TEMCDeviceImpl>, code: TEMCError, msg: String) {
-    let msg = cstring(msg);
-    match device {
-        Some(d) => {
-            let mut st = d.errors.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some(cb) = st.callback {
-                // SAFETY: the caller registered this function for exactly these arguments.
-                unsafe { cb(st.user_ptr as *mut c_void, code, msg.as_ptr()) };
-            }
-            if st.first.is_none() {
-                st.first = Some((code, msg));
-            }
+/// Reads an int parameter of a physical device: "type" (TEMC_DEVICE_TYPE_CPU).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetPhysicalDeviceInt(id: i32, name: *const c_char) -> i32 {
+    guarded(0, |_| {
+        physical(id)?;
+        // SAFETY: the caller's contract.
+        match unsafe { name_arg(name) }? {
+            "type" => Ok(TEMC_DEVICE_TYPE_CPU as i32),
+            other => Err(Failure::invalid(format!(
+                "unknown physical device parameter {other:?}"
+            ))),
         }
-        None => GLOBAL_ERROR.with(|g| {
-            let mut g = g.borrow_mut();
-            if g.0.is_none() {
-                g.0 = Some((code, msg));
-            }
-        }),
-    }
+    })
 }
 
-/// Runs `f` with the live device behind `d`, recording its error (or a panic) on it.
-fn with_device<T>(
-    d: TEMCDevice,
-    fallback: T,
-    f: impl FnOnce(&TEMCDeviceImpl) -> Result<T, Error>,
-) -> T {
-    if d.is_null() || !is_live(d as usize) {
-        let what = if d.is_null() {
-            "NULL device"
-        } else {
-            "invalid or released device handle"
-        };
-        record(None, TEMC_ERROR_INVALID_ARGUMENT, what.into());
-        return fallback;
-    }
-    // SAFETY: registered handles point to live TEMCDeviceImpl values.
-    let dev = unsafe { &*d };
-    match catch_unwind(AssertUnwindSafe(|| f(dev))) {
-        Ok(Ok(v)) => v,
-        Ok(Err(e)) => {
-            record(Some(dev), code(&e), e.to_string());
-            fallback
-        }
-        Err(_) => {
-            record(
-                Some(dev),
-                TEMC_ERROR_UNKNOWN,
-                "internal error (panic)".into(),
-            );
-            fallback
-        }
-    }
+/// Reads an unsigned int parameter of a physical device (as temcGetPhysicalDeviceInt).
+///
+/// # Safety
+/// As temcGetPhysicalDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetPhysicalDeviceUInt(id: i32, name: *const c_char) -> u32 {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetPhysicalDeviceInt(id, name) as u32 }
 }
 
-/// Runs `f` with the live filter behind `f_`, recording errors on its device.
-fn with_filter<T>(
-    fh: TEMCFilter,
-    fallback: T,
-    f: impl FnOnce(&mut Filter<'static>) -> Result<T, Error>,
-) -> T {
-    if fh.is_null() || !is_live(fh as usize) {
-        let what = if fh.is_null() {
-            "NULL filter"
-        } else {
-            "invalid or released filter handle"
-        };
-        record(None, TEMC_ERROR_INVALID_ARGUMENT, what.into());
-        return fallback;
-    }
-    // SAFETY: registered handles point to live TEMCFilterImpl values, which keep their
-    // device retained.
-    let filt = unsafe { &*fh };
-    let dev = unsafe { &*filt.device };
-    let result = catch_unwind(AssertUnwindSafe(|| {
-        let mut guard = filt.filter.lock().unwrap_or_else(|e| e.into_inner());
-        f(&mut guard)
-    }));
-    match result {
-        Ok(Ok(v)) => v,
-        Ok(Err(e)) => {
-            record(Some(dev), code(&e), e.to_string());
-            fallback
+/// Reads a string parameter of a physical device: "name" (the CPU model). The string lives
+/// as long as the process.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetPhysicalDeviceString(
+    id: i32,
+    name: *const c_char,
+) -> *const c_char {
+    guarded(std::ptr::null(), |_| {
+        physical(id)?;
+        // SAFETY: the caller's contract.
+        match unsafe { name_arg(name) }? {
+            "name" => Ok(cpu_name().as_ptr()),
+            other => Err(Failure::invalid(format!(
+                "unknown physical device parameter {other:?}"
+            ))),
         }
-        Err(_) => {
-            record(
-                Some(dev),
-                TEMC_ERROR_UNKNOWN,
-                "internal error (panic)".into(),
-            );
-            fallback
-        }
-    }
+    })
 }
 
-fn name_arg<'a>(name: *const c_char) -> Result<&'a str, Error> {
-    if name.is_null() {
-        return Err(Error::InvalidArgument("NULL name".into()));
+/// Reads opaque data of a physical device ("uuid", "luid"): the CPU device has none, so
+/// this returns NULL with an error, and 0 in `byte_size` (may be NULL).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string; `byte_size` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetPhysicalDeviceData(
+    id: i32,
+    name: *const c_char,
+    byte_size: *mut usize,
+) -> *const c_void {
+    if !byte_size.is_null() {
+        // SAFETY: the caller's contract.
+        unsafe { *byte_size = 0 };
     }
-    // SAFETY: the caller passes a NUL-terminated string.
-    unsafe { CStr::from_ptr(name) }
-        .to_str()
-        .map_err(|_| Error::InvalidArgument("name is not UTF-8".into()))
+    guarded(std::ptr::null(), |_| {
+        physical(id)?;
+        // SAFETY: the caller's contract.
+        let n = unsafe { name_arg(name) }?;
+        Err(Failure::invalid(format!(
+            "physical device parameter {n:?} is not available on the CPU device"
+        )))
+    })
 }
 
-/// Creates a device of the given type (TEMC_DEVICE_TYPE_DEFAULT or TEMC_DEVICE_TYPE_CPU).
-/// Returns NULL on failure; temcGetDeviceError(NULL, ...) then says why.
+// ---------------------------------------------------------------------------------------
+// Devices.
+
+/// Returns whether the CPU device is supported: true.
+#[no_mangle]
+pub extern "C" fn temcIsCPUDeviceSupported() -> bool {
+    true
+}
+
+/// Returns whether a SYCL device is supported: false.
+#[no_mangle]
+pub extern "C" fn temcIsSYCLDeviceSupported(_device: *const c_void) -> bool {
+    false
+}
+
+/// Returns whether a CUDA device is supported: false.
+#[no_mangle]
+pub extern "C" fn temcIsCUDADeviceSupported(_device_id: i32) -> bool {
+    false
+}
+
+/// Returns whether a HIP device is supported: false.
+#[no_mangle]
+pub extern "C" fn temcIsHIPDeviceSupported(_device_id: i32) -> bool {
+    false
+}
+
+/// Returns whether a Metal device is supported: false.
+#[no_mangle]
+pub extern "C" fn temcIsMetalDeviceSupported(_device: *mut c_void) -> bool {
+    false
+}
+
+/// Creates a device: TEMC_DEVICE_TYPE_DEFAULT or _CPU. The GPU types give NULL with
+/// TEMC_ERROR_UNSUPPORTED_HARDWARE, other values TEMC_ERROR_INVALID_ARGUMENT;
+/// temcGetDeviceError(NULL, ...) says why.
 #[no_mangle]
 pub extern "C" fn temcNewDevice(device_type: TEMCDeviceType) -> TEMCDevice {
-    let r = catch_unwind(|| {
-        if device_type != TEMC_DEVICE_TYPE_DEFAULT && device_type != TEMC_DEVICE_TYPE_CPU {
-            record(
-                None,
-                TEMC_ERROR_INVALID_ARGUMENT,
-                format!("unsupported device type {device_type}"),
-            );
-            return std::ptr::null_mut();
+    guarded(std::ptr::null_mut(), |_| match device_type {
+        TEMC_DEVICE_TYPE_DEFAULT | TEMC_DEVICE_TYPE_CPU => new_device(),
+        TEMC_DEVICE_TYPE_SYCL => gpu_unsupported("SYCL"),
+        TEMC_DEVICE_TYPE_CUDA => gpu_unsupported("CUDA"),
+        TEMC_DEVICE_TYPE_HIP => gpu_unsupported("HIP"),
+        TEMC_DEVICE_TYPE_METAL => gpu_unsupported("Metal"),
+        other => Err(Failure::invalid(format!("unknown device type {other}"))),
+    })
+}
+
+/// Creates a device from a physical device ID (0, the CPU).
+#[no_mangle]
+pub extern "C" fn temcNewDeviceByID(physical_device_id: i32) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| {
+        physical(physical_device_id)?;
+        new_device()
+    })
+}
+
+/// Creates a device from a physical device's UUID: the CPU has none, so this gives NULL
+/// with TEMC_ERROR_INVALID_ARGUMENT.
+#[no_mangle]
+pub extern "C" fn temcNewDeviceByUUID(_uuid: *const c_void) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| {
+        Err(Failure::invalid(
+            "no physical device with this UUID (temc has only the CPU)",
+        ))
+    })
+}
+
+/// Creates a device from a physical device's LUID: NULL, as temcNewDeviceByUUID.
+#[no_mangle]
+pub extern "C" fn temcNewDeviceByLUID(_luid: *const c_void) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| {
+        Err(Failure::invalid(
+            "no physical device with this LUID (temc has only the CPU)",
+        ))
+    })
+}
+
+/// Creates a device from a PCI address: NULL, as temcNewDeviceByUUID.
+#[no_mangle]
+pub extern "C" fn temcNewDeviceByPCIAddress(
+    _pci_domain: i32,
+    _pci_bus: i32,
+    _pci_device: i32,
+    _pci_function: i32,
+) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| {
+        Err(Failure::invalid(
+            "no physical device at this PCI address (temc has only the CPU)",
+        ))
+    })
+}
+
+/// Creates a SYCL device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+#[no_mangle]
+pub extern "C" fn temcNewSYCLDevice(_queues: *const c_void, _num_queues: i32) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| gpu_unsupported("SYCL"))
+}
+
+/// Creates a CUDA device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+#[no_mangle]
+pub extern "C" fn temcNewCUDADevice(
+    _device_ids: *const i32,
+    _streams: *const c_void,
+    _num_pairs: i32,
+) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| gpu_unsupported("CUDA"))
+}
+
+/// Creates a HIP device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+#[no_mangle]
+pub extern "C" fn temcNewHIPDevice(
+    _device_ids: *const i32,
+    _streams: *const c_void,
+    _num_pairs: i32,
+) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| gpu_unsupported("HIP"))
+}
+
+/// Creates a Metal device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
+#[no_mangle]
+pub extern "C" fn temcNewMetalDevice(
+    _command_queues: *const c_void,
+    _num_queues: i32,
+) -> TEMCDevice {
+    guarded(std::ptr::null_mut(), |_| gpu_unsupported("Metal"))
+}
+
+/// Adds a reference to the device.
+#[no_mangle]
+pub extern "C" fn temcRetainDevice(device: TEMCDevice) {
+    guarded((), |_| {
+        if DEVICES.retain(device.addr()) {
+            Ok(())
+        } else {
+            Err(Failure::invalid("invalid or released device handle"))
         }
-        let d = Box::into_raw(Box::new(TEMCDeviceImpl {
-            refs: AtomicUsize::new(1),
-            device: Device::new(),
-            errors: Mutex::new(ErrorState {
-                first: None,
-                returned: CString::default(),
-                callback: None,
-                user_ptr: 0,
-            }),
-        }));
-        live()
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(d as usize);
-        d
-    });
-    r.unwrap_or_else(|_| {
-        record(
-            None,
-            TEMC_ERROR_UNKNOWN,
-            "internal error (panic) creating a device".into(),
-        );
-        std::ptr::null_mut()
+    })
+}
+
+/// Drops a reference; with the last one the handle is dead (filters and buffers made on
+/// the device keep what they need of it until they are released too).
+#[no_mangle]
+pub extern "C" fn temcReleaseDevice(device: TEMCDevice) {
+    guarded((), |_| match DEVICES.release(device.addr()) {
+        Some(last) => {
+            drop(last);
+            Ok(())
+        }
+        None => Err(Failure::invalid("invalid or released device handle")),
     })
 }
 
 /// Commits the device's parameters (builds its thread pool). Required before filters run.
 #[no_mangle]
 pub extern "C" fn temcCommitDevice(device: TEMCDevice) {
-    with_device(device, (), |d| d.device.commit())
+    guarded((), |c| Ok(c.device(device)?.device.commit()?))
 }
 
-/// Sets a device parameter: "numThreads" (0 = all cores), "verbose".
+/// Waits for the device's asynchronous operations: they all complete before returning, so
+/// this only checks the handle.
 #[no_mangle]
-pub extern "C" fn temcSetDeviceInt(device: TEMCDevice, name: *const c_char, value: i32) {
-    with_device(device, (), |d| match name_arg(name)? {
-        "numThreads" if value >= 0 => {
-            d.device.set_num_threads(value as usize);
-            Ok(())
-        }
-        "numThreads" => Err(Error::InvalidArgument(format!(
-            "numThreads must be >= 0, got {value}"
-        ))),
-        "verbose" => {
-            d.device.set_verbose(value);
-            Ok(())
-        }
-        other => Err(Error::InvalidArgument(format!(
-            "unknown device parameter {other:?}"
-        ))),
-    })
+pub extern "C" fn temcSyncDevice(device: TEMCDevice) {
+    guarded((), |c| c.device(device).map(|_| ()))
 }
 
-/// Reads a device parameter: "numThreads", "verbose", "version" (major*10000+minor*100+patch).
-#[no_mangle]
-pub extern "C" fn temcGetDeviceInt(device: TEMCDevice, name: *const c_char) -> i32 {
-    with_device(device, 0, |d| match name_arg(name)? {
-        "numThreads" => Ok(d.device.num_threads() as i32),
-        "verbose" => Ok(d.device.verbose()),
-        "version" => {
+fn set_device_int(d: &DeviceObj, name: &str, value: i32) -> Outcome<()> {
+    match name {
+        "numThreads" if value >= 0 => d.device.set_num_threads(value as usize),
+        "numThreads" => {
+            return Err(Failure::invalid(format!(
+                "numThreads must be >= 0, got {value}"
+            )))
+        }
+        "verbose" => d.device.set_verbose(value),
+        // Thread pinning: temc's pool does not pin; the value is kept for reading back.
+        "setAffinity" => d.set_affinity.store(value != 0, Ordering::Relaxed),
+        other => d.warn(&format!("unknown device parameter {other:?} ignored")),
+    }
+    Ok(())
+}
+
+fn get_device_int(d: &DeviceObj, name: &str) -> i32 {
+    match name {
+        "type" => TEMC_DEVICE_TYPE_CPU as i32,
+        "version" => TEMC_VERSION as i32,
+        "versionMajor" => TEMC_VERSION_MAJOR as i32,
+        "versionMinor" => TEMC_VERSION_MINOR as i32,
+        "versionPatch" => TEMC_VERSION_PATCH as i32,
+        "libraryVersion" => {
             let v: Vec<i32> = env!("CARGO_PKG_VERSION")
                 .split('.')
                 .map(|p| p.parse().unwrap_or(0))
                 .collect();
-            Ok(v[0] * 10000 + v[1] * 100 + v[2])
+            v[0] * 10000 + v[1] * 100 + v[2]
         }
-        other => Err(Error::InvalidArgument(format!(
-            "unknown device parameter {other:?}"
-        ))),
+        "numThreads" => d.device.num_threads() as i32,
+        "verbose" => d.device.verbose(),
+        "setAffinity" => affinity(d) as i32,
+        "systemMemorySupported" | "managedMemorySupported" => 1,
+        "externalMemoryTypes" => TEMC_EXTERNAL_MEMORY_TYPE_FLAG_NONE as i32,
+        other => {
+            d.warn(&format!("unknown device parameter {other:?}"));
+            0
+        }
+    }
+}
+
+/// Sets an int (or bool) device parameter: "numThreads" (0 = all cores), "verbose",
+/// "setAffinity". Unknown names are ignored with a warning (printed when verbose).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetDeviceInt(device: TEMCDevice, name: *const c_char, value: i32) {
+    guarded((), |c| {
+        let d = c.device(device)?;
+        // SAFETY: the caller's contract.
+        set_device_int(&d, unsafe { name_arg(name) }?, value)
     })
 }
 
-/// Registers a function called with every error of this device (NULL removes it).
+/// Sets a bool device parameter (as temcSetDeviceInt with 0 or 1).
+///
+/// # Safety
+/// As temcSetDeviceInt.
 #[no_mangle]
-pub extern "C" fn temcSetDeviceErrorFunction(
+pub unsafe extern "C" fn temcSetDeviceBool(device: TEMCDevice, name: *const c_char, value: bool) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetDeviceInt(device, name, value as i32) }
+}
+
+/// Sets an unsigned int device parameter (as temcSetDeviceInt).
+///
+/// # Safety
+/// As temcSetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetDeviceUInt(device: TEMCDevice, name: *const c_char, value: u32) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetDeviceInt(device, name, value as i32) }
+}
+
+/// Deprecated OIDN 1.x name of temcSetDeviceBool.
+///
+/// # Safety
+/// As temcSetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetDevice1b(device: TEMCDevice, name: *const c_char, value: bool) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetDeviceBool(device, name, value) }
+}
+
+/// Deprecated OIDN 1.x name of temcSetDeviceInt.
+///
+/// # Safety
+/// As temcSetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetDevice1i(device: TEMCDevice, name: *const c_char, value: i32) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetDeviceInt(device, name, value) }
+}
+
+/// Reads an int (or bool) device parameter: "type", "version" (TEMC_VERSION),
+/// "versionMajor", "versionMinor", "versionPatch", "libraryVersion" (temc's own,
+/// major*10000+minor*100+patch), "numThreads", "verbose", "setAffinity",
+/// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes". Unknown
+/// names read 0 with a warning.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetDeviceInt(device: TEMCDevice, name: *const c_char) -> i32 {
+    guarded(0, |c| {
+        let d = c.device(device)?;
+        // SAFETY: the caller's contract.
+        Ok(get_device_int(&d, unsafe { name_arg(name) }?))
+    })
+}
+
+/// Reads a bool device parameter (as temcGetDeviceInt, != 0).
+///
+/// # Safety
+/// As temcGetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetDeviceBool(device: TEMCDevice, name: *const c_char) -> bool {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetDeviceInt(device, name) != 0 }
+}
+
+/// Reads an unsigned int device parameter (as temcGetDeviceInt).
+///
+/// # Safety
+/// As temcGetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetDeviceUInt(device: TEMCDevice, name: *const c_char) -> u32 {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetDeviceInt(device, name) as u32 }
+}
+
+/// Deprecated OIDN 1.x name of temcGetDeviceBool.
+///
+/// # Safety
+/// As temcGetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetDevice1b(device: TEMCDevice, name: *const c_char) -> bool {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetDeviceBool(device, name) }
+}
+
+/// Deprecated OIDN 1.x name of temcGetDeviceInt.
+///
+/// # Safety
+/// As temcGetDeviceInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetDevice1i(device: TEMCDevice, name: *const c_char) -> i32 {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetDeviceInt(device, name) }
+}
+
+/// Registers a function called with every error of this device (NULL removes it). It is
+/// called with no temc lock held, so it may call temcGetDeviceError.
+///
+/// # Safety
+/// `func` must be safe to call with `user_ptr` from any thread that uses the device, until
+/// it is replaced or the device is gone.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetDeviceErrorFunction(
     device: TEMCDevice,
     func: TEMCErrorFunction,
     user_ptr: *mut c_void,
 ) {
-    with_device(device, (), |d| {
-        let mut st = d.errors.lock().unwrap_or_else(|e| e.into_inner());
-        st.callback = func;
-        st.user_ptr = user_ptr as usize;
+    guarded((), |c| {
+        c.device(device)?.set_error_function(func, user_ptr);
         Ok(())
     })
 }
 
 /// Returns the first error not yet queried and clears it; `out_message` (may be NULL)
-/// receives its text, valid until the next call. A NULL device returns errors that had no
-/// device (device creation, NULL or released handles) on this thread.
+/// receives its text (NULL for no error), valid until the next query. A NULL device
+/// returns this thread's errors that had no device (device creation, NULL or released
+/// handles, physical device queries).
+///
+/// # Safety
+/// `out_message` must be NULL or writable.
 #[no_mangle]
 pub unsafe extern "C" fn temcGetDeviceError(
     device: TEMCDevice,
     out_message: *mut *const c_char,
 ) -> TEMCError {
-    let take = |slot: &mut Option<(TEMCError, CString)>, returned: &mut CString| -> TEMCError {
-        let (c, m) = slot.take().unwrap_or((TEMC_ERROR_NONE, CString::default()));
-        *returned = m;
-        if !out_message.is_null() {
-            // SAFETY: the caller passes a writable pointer or NULL.
-            unsafe {
-                *out_message = if c == TEMC_ERROR_NONE {
-                    std::ptr::null()
-                } else {
-                    returned.as_ptr()
-                }
-            };
+    let (code, message) = guarded((TEMC_ERROR_UNKNOWN, std::ptr::null()), |c| {
+        if device.is_null() {
+            return Ok(take_error(None));
         }
-        c
+        // A dead handle is itself an error, reported (like OIDN) on this thread.
+        let d = c.device(device)?;
+        Ok(take_error(Some(&d)))
+    });
+    // A dead handle: what was just recorded globally is the answer.
+    let (code, message) = if code == TEMC_ERROR_UNKNOWN && message.is_null() {
+        take_error(None)
+    } else {
+        (code, message)
     };
-    catch_unwind(AssertUnwindSafe(|| {
-        if device.is_null() || !is_live(device as usize) {
-            if !device.is_null() {
-                record(
-                    None,
-                    TEMC_ERROR_INVALID_ARGUMENT,
-                    "invalid or released device handle".into(),
-                );
-            }
-            return GLOBAL_ERROR.with(|g| {
-                let mut g = g.borrow_mut();
-                let (slot, returned) = &mut *g;
-                take(slot, returned)
-            });
-        }
-        // SAFETY: registered handle.
-        let d = unsafe { &*device };
-        let mut st = d.errors.lock().unwrap_or_else(|e| e.into_inner());
-        let st = &mut *st;
-        take(&mut st.first, &mut st.returned)
-    }))
-    .unwrap_or(TEMC_ERROR_UNKNOWN)
-}
-
-/// Adds a reference to the device.
-#[no_mangle]
-pub extern "C" fn temcRetainDevice(device: TEMCDevice) {
-    let reg = live().lock().unwrap_or_else(|e| e.into_inner());
-    if device.is_null() || !reg.contains(&(device as usize)) {
-        drop(reg);
-        record(
-            None,
-            TEMC_ERROR_INVALID_ARGUMENT,
-            "invalid or released device handle".into(),
-        );
-        return;
+    if !out_message.is_null() {
+        // SAFETY: the caller passes a writable pointer or NULL.
+        unsafe { *out_message = message };
     }
-    // SAFETY: registered handle.
-    unsafe { &*device }.refs.fetch_add(1, Ordering::SeqCst);
+    code
 }
 
-/// Drops a reference; the device is freed with its last reference (filters hold one).
+// ---------------------------------------------------------------------------------------
+// Buffers: host memory.
+
+fn new_buffer(obj: BufferObj) -> Outcome<TEMCBuffer> {
+    BUFFERS
+        .insert(obj)
+        .map(handle)
+        .ok_or_else(|| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, "too many buffers"))
+}
+
+/// Creates a zeroed host buffer of `byte_size` bytes.
 #[no_mangle]
-pub extern "C" fn temcReleaseDevice(device: TEMCDevice) {
-    with_device(device, (), |d| {
-        release_device(d as *const _ as *mut TEMCDeviceImpl);
+pub extern "C" fn temcNewBuffer(device: TEMCDevice, byte_size: usize) -> TEMCBuffer {
+    temcNewBufferWithStorage(device, byte_size, TEMC_STORAGE_HOST)
+}
+
+/// Creates a buffer with a storage mode; every mode is host memory on the CPU device (the
+/// host may use temcGetBufferData for all of them).
+#[no_mangle]
+pub extern "C" fn temcNewBufferWithStorage(
+    device: TEMCDevice,
+    byte_size: usize,
+    storage: TEMCStorage,
+) -> TEMCBuffer {
+    guarded(std::ptr::null_mut(), |c| {
+        let d = c.device(device)?;
+        let storage = match storage {
+            TEMC_STORAGE_UNDEFINED => TEMC_STORAGE_HOST,
+            s @ (TEMC_STORAGE_HOST | TEMC_STORAGE_DEVICE | TEMC_STORAGE_MANAGED) => s,
+            other => return Err(Failure::invalid(format!("unknown storage mode {other}"))),
+        };
+        new_buffer(BufferObj::owned(d, byte_size, storage)?)
+    })
+}
+
+/// Creates a buffer over the caller's memory (no copy).
+///
+/// # Safety
+/// `ptr` must be valid for reads and writes of `byte_size` bytes for the buffer's lifetime
+/// (until its last release, and while a filter has an image of it set).
+#[no_mangle]
+pub unsafe extern "C" fn temcNewSharedBuffer(
+    device: TEMCDevice,
+    ptr: *mut c_void,
+    byte_size: usize,
+) -> TEMCBuffer {
+    guarded(std::ptr::null_mut(), |c| {
+        let d = c.device(device)?;
+        if ptr.is_null() && byte_size > 0 {
+            return Err(Failure::invalid("shared buffer: NULL pointer"));
+        }
+        new_buffer(BufferObj::shared(d, ptr as *mut u8, byte_size))
+    })
+}
+
+fn no_external_memory(device: TEMCDevice) -> TEMCBuffer {
+    guarded(std::ptr::null_mut(), |c| {
+        c.device(device)?;
+        Err(Failure::operation(
+            "the CPU device imports no external memory (\"externalMemoryTypes\" is 0)",
+        ))
+    })
+}
+
+/// Imports external memory from a file descriptor: not supported on the CPU device (NULL,
+/// TEMC_ERROR_INVALID_OPERATION).
+#[no_mangle]
+pub extern "C" fn temcNewSharedBufferFromFD(
+    device: TEMCDevice,
+    _fd_type: TEMCExternalMemoryTypeFlag,
+    _fd: i32,
+    _byte_size: usize,
+) -> TEMCBuffer {
+    no_external_memory(device)
+}
+
+/// Imports external memory from a Win32 handle: not supported (as temcNewSharedBufferFromFD).
+#[no_mangle]
+pub extern "C" fn temcNewSharedBufferFromWin32Handle(
+    device: TEMCDevice,
+    _handle_type: TEMCExternalMemoryTypeFlag,
+    _handle: *mut c_void,
+    _name: *const c_void,
+    _byte_size: usize,
+) -> TEMCBuffer {
+    no_external_memory(device)
+}
+
+/// Wraps a Metal buffer: not supported (as temcNewSharedBufferFromFD).
+#[no_mangle]
+pub extern "C" fn temcNewSharedBufferFromMetal(
+    device: TEMCDevice,
+    _buffer: *mut c_void,
+) -> TEMCBuffer {
+    no_external_memory(device)
+}
+
+/// Returns the buffer's size in bytes (0 on error).
+#[no_mangle]
+pub extern "C" fn temcGetBufferSize(buffer: TEMCBuffer) -> usize {
+    guarded(0, |c| Ok(c.buffer(buffer)?.size))
+}
+
+/// Returns the buffer's storage mode.
+#[no_mangle]
+pub extern "C" fn temcGetBufferStorage(buffer: TEMCBuffer) -> TEMCStorage {
+    guarded(TEMC_STORAGE_UNDEFINED, |c| Ok(c.buffer(buffer)?.storage))
+}
+
+/// Returns the buffer's data, host-accessible (NULL for an empty buffer or on error).
+#[no_mangle]
+pub extern "C" fn temcGetBufferData(buffer: TEMCBuffer) -> *mut c_void {
+    guarded(std::ptr::null_mut(), |c| {
+        Ok(c.buffer(buffer)?.ptr as *mut c_void)
+    })
+}
+
+/// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
+///
+/// # Safety
+/// `dst_host_ptr` must be writable for `byte_size` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn temcReadBuffer(
+    buffer: TEMCBuffer,
+    byte_offset: usize,
+    byte_size: usize,
+    dst_host_ptr: *mut c_void,
+) {
+    guarded((), |c| {
+        let b = c.buffer(buffer)?;
+        b.check_range(byte_offset, byte_size)?;
+        if byte_size == 0 {
+            return Ok(());
+        }
+        if dst_host_ptr.is_null() {
+            return Err(Failure::invalid("read buffer: NULL destination"));
+        }
+        // SAFETY: the range is inside the buffer; the caller's contract covers the
+        // destination. `copy` allows the two to overlap.
+        unsafe { std::ptr::copy(b.ptr.add(byte_offset), dst_host_ptr as *mut u8, byte_size) };
         Ok(())
     })
 }
 
-fn release_device(d: *mut TEMCDeviceImpl) {
-    let mut reg = live().lock().unwrap_or_else(|e| e.into_inner());
-    // SAFETY: `d` is registered (checked under the same lock by callers' paths).
-    if reg.contains(&(d as usize)) && unsafe { &*d }.refs.fetch_sub(1, Ordering::SeqCst) == 1 {
-        reg.remove(&(d as usize));
-        drop(reg);
-        // SAFETY: last reference; created by Box::into_raw in temcNewDevice.
-        drop(unsafe { Box::from_raw(d) });
-    }
+/// temcReadBuffer; complete on return (the CPU device runs everything synchronously).
+///
+/// # Safety
+/// As temcReadBuffer.
+#[no_mangle]
+pub unsafe extern "C" fn temcReadBufferAsync(
+    buffer: TEMCBuffer,
+    byte_offset: usize,
+    byte_size: usize,
+    dst_host_ptr: *mut c_void,
+) {
+    // SAFETY: forwarded contract.
+    unsafe { temcReadBuffer(buffer, byte_offset, byte_size, dst_host_ptr) }
 }
 
-/// Creates a filter: "TEMC2" (the default choice), "TEMC1", "DEMC" or "AE".
+/// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`.
+///
+/// # Safety
+/// `src_host_ptr` must be readable for `byte_size` bytes.
 #[no_mangle]
-pub extern "C" fn temcNewFilter(device: TEMCDevice, filter_type: *const c_char) -> TEMCFilter {
-    with_device(device, std::ptr::null_mut(), |d| {
-        let kind = name_arg(filter_type)?;
-        let filter = Filter::new(&d.device, kind)?;
-        d.refs.fetch_add(1, Ordering::SeqCst);
-        let f = Box::into_raw(Box::new(TEMCFilterImpl {
-            refs: AtomicUsize::new(1),
-            device: d as *const _ as *mut TEMCDeviceImpl,
-            filter: Mutex::new(filter),
-        }));
-        live()
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(f as usize);
-        Ok(f)
+pub unsafe extern "C" fn temcWriteBuffer(
+    buffer: TEMCBuffer,
+    byte_offset: usize,
+    byte_size: usize,
+    src_host_ptr: *const c_void,
+) {
+    guarded((), |c| {
+        let b = c.buffer(buffer)?;
+        b.check_range(byte_offset, byte_size)?;
+        if byte_size == 0 {
+            return Ok(());
+        }
+        if src_host_ptr.is_null() {
+            return Err(Failure::invalid("write buffer: NULL source"));
+        }
+        // SAFETY: as in temcReadBuffer, reversed.
+        unsafe { std::ptr::copy(src_host_ptr as *const u8, b.ptr.add(byte_offset), byte_size) };
+        Ok(())
     })
 }
 
-/// Sets an image shared with the caller ("color", "albedo", "normal", "depth", "output").
-/// Strides of 0 mean tightly packed. The buffer must stay valid until the image is unset or
-/// the filter released; "output" may be the same buffer as "color" (in-place).
+/// temcWriteBuffer; complete on return.
+///
+/// # Safety
+/// As temcWriteBuffer.
+#[no_mangle]
+pub unsafe extern "C" fn temcWriteBufferAsync(
+    buffer: TEMCBuffer,
+    byte_offset: usize,
+    byte_size: usize,
+    src_host_ptr: *const c_void,
+) {
+    // SAFETY: forwarded contract.
+    unsafe { temcWriteBuffer(buffer, byte_offset, byte_size, src_host_ptr) }
+}
+
+/// Adds a reference to the buffer.
+#[no_mangle]
+pub extern "C" fn temcRetainBuffer(buffer: TEMCBuffer) {
+    guarded((), |_| {
+        if BUFFERS.retain(buffer.addr()) {
+            Ok(())
+        } else {
+            Err(Failure::invalid("invalid or released buffer handle"))
+        }
+    })
+}
+
+/// Drops a reference; the memory goes with the last one, or later while a filter still
+/// has an image of it set.
+#[no_mangle]
+pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
+    guarded((), |_| match BUFFERS.release(buffer.addr()) {
+        Some(last) => {
+            drop(last);
+            Ok(())
+        }
+        None => Err(Failure::invalid("invalid or released buffer handle")),
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Filters.
+
+/// Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
+/// given only "albedo" or only "normal" and an "output", it denoises that aux image),
+/// "RTLightmap" (TEMC-2 on HDR colour; "directional" must stay false), or temc's
+/// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced).
+///
+/// # Safety
+/// `filter_type` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcNewFilter(
+    device: TEMCDevice,
+    filter_type: *const c_char,
+) -> TEMCFilter {
+    guarded(std::ptr::null_mut(), |c| {
+        let d = c.device(device)?;
+        // SAFETY: the caller's contract.
+        let state = FilterState::new(&d, unsafe { name_arg(filter_type) }?)?;
+        FILTERS
+            .insert(FilterObj {
+                device: d,
+                state: Mutex::new(state),
+            })
+            .map(handle)
+            .ok_or_else(|| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, "too many filters"))
+    })
+}
+
+/// Adds a reference to the filter.
+#[no_mangle]
+pub extern "C" fn temcRetainFilter(filter: TEMCFilter) {
+    guarded((), |_| {
+        if FILTERS.retain(filter.addr()) {
+            Ok(())
+        } else {
+            Err(Failure::invalid("invalid or released filter handle"))
+        }
+    })
+}
+
+/// Drops a reference; the filter (with its hold on the device and buffers) goes with the
+/// last one, after any execution still running on another thread.
+#[no_mangle]
+pub extern "C" fn temcReleaseFilter(filter: TEMCFilter) {
+    guarded((), |_| match FILTERS.release(filter.addr()) {
+        Some(last) => {
+            drop(last);
+            Ok(())
+        }
+        None => Err(Failure::invalid("invalid or released filter handle")),
+    })
+}
+
+fn layout(
+    format: TEMCFormat,
+    width: usize,
+    height: usize,
+    byte_offset: usize,
+    pixel_stride: usize,
+    row_stride: usize,
+) -> Outcome<Layout> {
+    let format = Format::from_raw(format)
+        .ok_or_else(|| Failure::invalid(format!("unknown format {format}")))?;
+    Ok(Layout {
+        format,
+        width,
+        height,
+        byte_offset,
+        pixel_stride,
+        row_stride,
+    })
+}
+
+/// Sets an image stored in a buffer (which the filter holds while the image is set).
+/// Names: "color", "albedo", "normal", "depth", "output", "spectral" (see
+/// temcSetSharedFilterImage). Strides of 0 mean tightly packed.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
-pub extern "C" fn temcSetSharedFilterImage(
+pub unsafe extern "C" fn temcSetFilterImage(
+    filter: TEMCFilter,
+    name: *const c_char,
+    buffer: TEMCBuffer,
+    format: TEMCFormat,
+    width: usize,
+    height: usize,
+    byte_offset: usize,
+    pixel_byte_stride: usize,
+    row_byte_stride: usize,
+) {
+    guarded((), |c| {
+        let b = c.buffer(buffer)?;
+        let f = c.filter(filter)?;
+        if !Arc::ptr_eq(&b.device, &f.device) {
+            return Err(Failure::invalid("the buffer belongs to another device"));
+        }
+        // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
+        let l = layout(
+            format,
+            width,
+            height,
+            byte_offset,
+            pixel_byte_stride,
+            row_byte_stride,
+        )?;
+        let mut st = f.lock();
+        st.check_buffer_image(name, &l, &b)?;
+        let ptr = b.ptr;
+        // SAFETY: the layout fits the buffer, and the state holds the buffer while the
+        // image is set.
+        unsafe { st.set_image(&f.device, name, ptr, l, Some(b)) }
+    })
+}
+
+/// Sets an image in the caller's memory: "color" (linear RGB; sRGB-encoded with "srgb"
+/// and "hdr" false), "albedo", "normal", "depth" (1 channel), "output" (may be the same
+/// memory as "color": in-place), or "spectral": N bands per pixel of one float type
+/// (`format` TEMC_FORMAT_FLOAT or TEMC_FORMAT_HALF is the type of one band), N the
+/// filter's int "spectralBands", the bands splitting [float "spectralMin", float
+/// "spectralMax"] nm (default 380..780) evenly, each band's value its mean spectral
+/// radiance; temc converts it with the CIE 1931 colour matching functions to linear sRGB
+/// and denoises that (set "spectral" instead of "color"). A pixel stride of 0 means N
+/// packed bands. Unknown names are ignored with a warning.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string; `dev_ptr` must be valid for reads (and
+/// writes, for "output") of the bytes the layout spans, from this call until the image is
+/// unset or the filter released.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn temcSetSharedFilterImage(
     filter: TEMCFilter,
     name: *const c_char,
     dev_ptr: *mut c_void,
@@ -476,103 +1066,250 @@ pub extern "C" fn temcSetSharedFilterImage(
     pixel_byte_stride: usize,
     row_byte_stride: usize,
 ) {
-    with_filter(filter, (), |f| {
-        let name = name_arg(name)?;
-        let format = Format::from_raw(format)
-            .ok_or_else(|| Error::InvalidArgument(format!("unknown format {format}")))?;
-        let layout = Layout {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
+        let l = layout(
             format,
             width,
             height,
             byte_offset,
-            pixel_stride: pixel_byte_stride,
-            row_stride: row_byte_stride,
-        };
-        // SAFETY: the C caller promises the buffer lives as documented above.
-        unsafe { f.set_shared_image(name, dev_ptr as *mut u8, layout) }
+            pixel_byte_stride,
+            row_byte_stride,
+        )?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        // SAFETY: the caller's contract.
+        unsafe { st.set_image(&f.device, name, dev_ptr as *mut u8, l, None) }
     })
 }
 
 /// Removes an image from the filter.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub extern "C" fn temcUnsetFilterImage(filter: TEMCFilter, name: *const c_char) {
-    with_filter(filter, (), |f| f.unset_image(name_arg(name)?))
+pub unsafe extern "C" fn temcUnsetFilterImage(filter: TEMCFilter, name: *const c_char) {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        st.unset_image(&f.device, unsafe { name_arg(name) }?)
+    })
 }
 
-/// Sets opaque data: "weights" = a temc ONNX model (copied; the buffer may be freed after).
+/// Deprecated OIDN 1.x name of temcUnsetFilterImage.
+///
+/// # Safety
+/// As temcUnsetFilterImage.
 #[no_mangle]
-pub extern "C" fn temcSetSharedFilterData(
+pub unsafe extern "C" fn temcRemoveFilterImage(filter: TEMCFilter, name: *const c_char) {
+    // SAFETY: forwarded contract.
+    unsafe { temcUnsetFilterImage(filter, name) }
+}
+
+/// Sets opaque data: "weights" = a temc ONNX model (copied now and at each
+/// temcUpdateFilterData).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string; `host_ptr` readable for `byte_size`
+/// bytes now and at every temcUpdateFilterData until the data is unset.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetSharedFilterData(
     filter: TEMCFilter,
     name: *const c_char,
     host_ptr: *mut c_void,
     byte_size: usize,
 ) {
-    with_filter(filter, (), |f| match name_arg(name)? {
-        "weights" => {
-            if host_ptr.is_null() || byte_size == 0 {
-                return Err(Error::InvalidArgument(
-                    "weights: NULL or empty buffer".into(),
-                ));
-            }
-            // SAFETY: the caller passes `byte_size` readable bytes.
-            f.set_weights(unsafe { std::slice::from_raw_parts(host_ptr as *const u8, byte_size) });
-            Ok(())
-        }
-        other => Err(Error::InvalidArgument(format!("unknown data {other:?}"))),
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        // SAFETY: the caller's contract.
+        unsafe { st.set_data(&f.device, name_arg(name)?, host_ptr as *const u8, byte_size) }
+    })
+}
+
+/// Tells the filter that opaque data changed in place (re-reads "weights"; commit again).
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string; the data's memory still readable.
+#[no_mangle]
+pub unsafe extern "C" fn temcUpdateFilterData(filter: TEMCFilter, name: *const c_char) {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        // SAFETY: the caller's contract.
+        unsafe { st.update_data(&f.device, name_arg(name)?) }
     })
 }
 
 /// Removes opaque data ("weights").
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub extern "C" fn temcUnsetFilterData(filter: TEMCFilter, name: *const c_char) {
-    with_filter(filter, (), |f| match name_arg(name)? {
-        "weights" => {
-            f.unset_weights();
-            Ok(())
-        }
-        other => Err(Error::InvalidArgument(format!("unknown data {other:?}"))),
+pub unsafe extern "C" fn temcUnsetFilterData(filter: TEMCFilter, name: *const c_char) {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        st.unset_data(&f.device, unsafe { name_arg(name) }?)
     })
 }
 
-/// Sets a boolean parameter: "hdr".
+/// Deprecated OIDN 1.x name of temcUnsetFilterData.
+///
+/// # Safety
+/// As temcUnsetFilterData.
 #[no_mangle]
-pub extern "C" fn temcSetFilterBool(filter: TEMCFilter, name: *const c_char, value: bool) {
-    with_filter(filter, (), |f| f.set_bool(name_arg(name)?, value))
+pub unsafe extern "C" fn temcRemoveFilterData(filter: TEMCFilter, name: *const c_char) {
+    // SAFETY: forwarded contract.
+    unsafe { temcUnsetFilterData(filter, name) }
 }
 
-/// Reads a boolean parameter: "hdr".
+/// Sets an int (or bool: OIDN treats them alike) parameter. Bools: "hdr", "srgb",
+/// "cleanAux" (accepted; temc uses the aux as given), "directional" (RTLightmap; true is
+/// refused). Ints: "quality" (TEMC_QUALITY_*), "maxMemoryMB" (-1: the default budget),
+/// "tileSize", "spectralBands". Unknown names are ignored with a warning.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub extern "C" fn temcGetFilterBool(filter: TEMCFilter, name: *const c_char) -> bool {
-    with_filter(filter, false, |f| match name_arg(name)? {
-        "hdr" => Ok(f.get_int("hdr")? != 0),
-        other => Err(Error::InvalidArgument(format!(
-            "unknown bool parameter {other:?}"
-        ))),
+pub unsafe extern "C" fn temcSetFilterInt(filter: TEMCFilter, name: *const c_char, value: i32) {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        st.set_int(&f.device, unsafe { name_arg(name) }?, value)
     })
 }
 
-/// Sets an integer parameter: "quality" (TEMC_QUALITY_*), "maxMemoryMB".
+/// Sets a bool parameter (as temcSetFilterInt with 0 or 1).
+///
+/// # Safety
+/// As temcSetFilterInt.
 #[no_mangle]
-pub extern "C" fn temcSetFilterInt(filter: TEMCFilter, name: *const c_char, value: i32) {
-    with_filter(filter, (), |f| f.set_int(name_arg(name)?, value))
+pub unsafe extern "C" fn temcSetFilterBool(filter: TEMCFilter, name: *const c_char, value: bool) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetFilterInt(filter, name, value as i32) }
 }
 
-/// Reads an integer parameter: "quality", "maxMemoryMB".
+/// Reads an int (or bool) parameter: those of temcSetFilterInt, and the read-only
+/// "alignment" and "overlap" (also "tileAlignment", "tileOverlap") of the committed
+/// model (0 before commit). Unknown names read 0 with a warning.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub extern "C" fn temcGetFilterInt(filter: TEMCFilter, name: *const c_char) -> i32 {
-    with_filter(filter, 0, |f| f.get_int(name_arg(name)?))
+pub unsafe extern "C" fn temcGetFilterInt(filter: TEMCFilter, name: *const c_char) -> i32 {
+    guarded(0, |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let st = f.lock();
+        st.get_int(&f.device, unsafe { name_arg(name) }?)
+    })
 }
 
-/// Sets a float parameter: "inputScale" (NaN = automatic exposure).
+/// Reads a bool parameter (as temcGetFilterInt, != 0).
+///
+/// # Safety
+/// As temcGetFilterInt.
 #[no_mangle]
-pub extern "C" fn temcSetFilterFloat(filter: TEMCFilter, name: *const c_char, value: f32) {
-    with_filter(filter, (), |f| f.set_float(name_arg(name)?, value))
+pub unsafe extern "C" fn temcGetFilterBool(filter: TEMCFilter, name: *const c_char) -> bool {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetFilterInt(filter, name) != 0 }
 }
 
-/// Reads a float parameter: "inputScale" (NaN while automatic).
+/// Sets a float parameter: "inputScale" (NaN = automatic exposure), its OIDN 1.x alias
+/// "hdrScale", "spectralMin", "spectralMax" (nm). Unknown names: a warning.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub extern "C" fn temcGetFilterFloat(filter: TEMCFilter, name: *const c_char) -> f32 {
-    with_filter(filter, f32::NAN, |f| f.get_float(name_arg(name)?))
+pub unsafe extern "C" fn temcSetFilterFloat(filter: TEMCFilter, name: *const c_char, value: f32) {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let mut st = f.lock();
+        st.set_float(&f.device, unsafe { name_arg(name) }?, value)
+    })
+}
+
+/// Reads a float parameter ("inputScale" is NaN while automatic); unknown names read 0.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetFilterFloat(filter: TEMCFilter, name: *const c_char) -> f32 {
+    guarded(f32::NAN, |c| {
+        let f = c.filter(filter)?;
+        // SAFETY: the caller's contract.
+        let st = f.lock();
+        st.get_float(&f.device, unsafe { name_arg(name) }?)
+    })
+}
+
+/// Deprecated OIDN 1.x name of temcSetFilterBool.
+///
+/// # Safety
+/// As temcSetFilterInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetFilter1b(filter: TEMCFilter, name: *const c_char, value: bool) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetFilterBool(filter, name, value) }
+}
+
+/// Deprecated OIDN 1.x name of temcGetFilterBool.
+///
+/// # Safety
+/// As temcGetFilterInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetFilter1b(filter: TEMCFilter, name: *const c_char) -> bool {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetFilterBool(filter, name) }
+}
+
+/// Deprecated OIDN 1.x name of temcSetFilterInt.
+///
+/// # Safety
+/// As temcSetFilterInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetFilter1i(filter: TEMCFilter, name: *const c_char, value: i32) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetFilterInt(filter, name, value) }
+}
+
+/// Deprecated OIDN 1.x name of temcGetFilterInt.
+///
+/// # Safety
+/// As temcGetFilterInt.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetFilter1i(filter: TEMCFilter, name: *const c_char) -> i32 {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetFilterInt(filter, name) }
+}
+
+/// Deprecated OIDN 1.x name of temcSetFilterFloat.
+///
+/// # Safety
+/// As temcSetFilterFloat.
+#[no_mangle]
+pub unsafe extern "C" fn temcSetFilter1f(filter: TEMCFilter, name: *const c_char, value: f32) {
+    // SAFETY: forwarded contract.
+    unsafe { temcSetFilterFloat(filter, name, value) }
+}
+
+/// Deprecated OIDN 1.x name of temcGetFilterFloat.
+///
+/// # Safety
+/// As temcGetFilterFloat.
+#[no_mangle]
+pub unsafe extern "C" fn temcGetFilter1f(filter: TEMCFilter, name: *const c_char) -> f32 {
+    // SAFETY: forwarded contract.
+    unsafe { temcGetFilterFloat(filter, name) }
 }
 
 struct SendPtr(*mut c_void);
@@ -582,18 +1319,24 @@ unsafe impl Send for SendPtr {}
 
 /// Sets the progress monitor (NULL removes it); returning false from it cancels execution
 /// with TEMC_ERROR_CANCELLED and leaves the output untouched.
+///
+/// # Safety
+/// `func` must be safe to call with `user_ptr` from temc's worker threads while the filter
+/// executes, until it is replaced or the filter released.
 #[no_mangle]
-pub extern "C" fn temcSetFilterProgressMonitorFunction(
+pub unsafe extern "C" fn temcSetFilterProgressMonitorFunction(
     filter: TEMCFilter,
     func: TEMCProgressMonitorFunction,
     user_ptr: *mut c_void,
 ) {
-    with_filter(filter, (), |f| {
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        let mut st = f.lock();
         match func {
-            None => f.unset_progress_monitor(),
+            None => st.core().unset_progress_monitor(),
             Some(cb) => {
                 let user = SendPtr(user_ptr);
-                f.set_progress_monitor(move |n| {
+                st.core().set_progress_monitor(move |n| {
                     let u = &user;
                     // SAFETY: the caller registered this callback for these arguments.
                     unsafe { cb(u.0, n) }
@@ -607,58 +1350,34 @@ pub extern "C" fn temcSetFilterProgressMonitorFunction(
 /// Commits the filter's parameters (loads the model). Required after changes.
 #[no_mangle]
 pub extern "C" fn temcCommitFilter(filter: TEMCFilter) {
-    with_filter(filter, (), |f| f.commit())
+    guarded((), |c| c.filter(filter)?.lock().commit())
 }
 
-/// Runs the filter synchronously. On error nothing is written to the output.
+/// Runs the filter. On error nothing is written to the output.
 #[no_mangle]
 pub extern "C" fn temcExecuteFilter(filter: TEMCFilter) {
-    with_filter(filter, (), |f| f.execute().map(|_| ()))
+    guarded((), |c| c.filter(filter)?.lock().execute())
 }
 
-/// Adds a reference to the filter.
+/// temcExecuteFilter; complete on return (the CPU device runs synchronously), so
+/// temcSyncDevice has nothing to wait for.
 #[no_mangle]
-pub extern "C" fn temcRetainFilter(filter: TEMCFilter) {
-    // Under the registry lock, so a concurrent release cannot free the handle in between;
-    // the filter's own lock is not taken, so retaining never waits for an execution.
-    let reg = live().lock().unwrap_or_else(|e| e.into_inner());
-    if filter.is_null() || !reg.contains(&(filter as usize)) {
-        drop(reg);
-        record(
-            None,
-            TEMC_ERROR_INVALID_ARGUMENT,
-            "invalid or released filter handle".into(),
-        );
-        return;
-    }
-    // SAFETY: registered handle.
-    unsafe { &*filter }.refs.fetch_add(1, Ordering::SeqCst);
+pub extern "C" fn temcExecuteFilterAsync(filter: TEMCFilter) {
+    temcExecuteFilter(filter)
 }
 
-/// Drops a reference; the filter (and its hold on the device) goes with the last one.
+/// Executes on a SYCL queue: not possible on the CPU device (TEMC_ERROR_INVALID_OPERATION).
 #[no_mangle]
-pub extern "C" fn temcReleaseFilter(filter: TEMCFilter) {
-    if filter.is_null() || !is_live(filter as usize) {
-        record(
-            None,
-            TEMC_ERROR_INVALID_ARGUMENT,
-            "invalid or released filter handle".into(),
-        );
-        return;
-    }
-    let _ = catch_unwind(|| {
-        let mut reg = live().lock().unwrap_or_else(|e| e.into_inner());
-        // SAFETY: registered handle, checked under the registry lock.
-        if reg.contains(&(filter as usize))
-            && unsafe { &*filter }.refs.fetch_sub(1, Ordering::SeqCst) == 1
-        {
-            reg.remove(&(filter as usize));
-            drop(reg);
-            // SAFETY: last reference; created by Box::into_raw in temcNewFilter.
-            let f = unsafe { Box::from_raw(filter) };
-            let dev = f.device;
-            drop(f);
-            release_device(dev);
-        }
-    });
+pub extern "C" fn temcExecuteSYCLFilterAsync(
+    filter: TEMCFilter,
+    _dep_events: *const c_void,
+    _num_dep_events: i32,
+    _done_event: *mut c_void,
+) {
+    guarded((), |c| {
+        c.filter(filter)?;
+        Err(Failure::operation(
+            "temcExecuteSYCLFilterAsync needs a SYCL device; use temcExecuteFilterAsync",
+        ))
+    })
 }

@@ -28,10 +28,12 @@
 //! # }
 //! ```
 //!
-//! The C ABI ([`capi`], `include/temc.h`) mirrors Intel Open Image Denoise 2.x.
+//! The C ABI (`capi`, behind the default cargo feature `capi`; `include/temc.h` and the
+//! C++ wrapper `include/temc.hpp`) mirrors Intel Open Image Denoise 2.x.
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "capi")]
 pub mod capi;
 pub mod color;
 pub mod engine;
@@ -39,6 +41,7 @@ mod error;
 pub mod filter;
 pub mod image;
 pub mod io;
+pub mod prefilter;
 /// Applies the network's per-pixel multi-level filters to linear radiance (docs/reconstruction.md).
 pub mod reconstruct;
 pub mod tile;

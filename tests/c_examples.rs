@@ -1,6 +1,8 @@
 //! The C and C++ examples, compiled with the system compiler against include/temc.h and the
 //! shared library, run as a real C host would: the misuse program asserts every error
-//! code, and the PFM denoiser's output must equal the Rust API's, bit for bit.
+//! code, the PFM denoiser's output must equal the Rust API's, bit for bit, and two OIDN
+//! 2.x clients renamed to temc (the C buffer example, a C++ pass through temc.hpp) run
+//! without errors.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -84,6 +86,17 @@ fn c_examples_build_and_behave() {
         "{}",
         String::from_utf8_lossy(&cpp.stderr)
     );
+
+    // OIDN 2.x clients, renamed: the C buffer example and a C++ renderer pass (temc.hpp).
+    for prog in ["buffers", "oidn_client"] {
+        let run = Command::new(bin.join(prog)).output().unwrap();
+        assert!(
+            run.status.success(),
+            "{prog} failed:\n{}{}",
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
 
     // PFM round trip through the C program, against the Rust API on the same inputs.
     let (w, h) = (75, 50);
@@ -320,6 +333,8 @@ fn c_programs_run_clean_under_asan_and_valgrind() {
         "denoise under ASan",
         asan("denoise", denoise_args("asan.pfm")),
     );
+    check("buffers under ASan", asan("buffers", vec![]));
+    check("oidn_client under ASan", asan("oidn_client", vec![]));
     // Valgrind's memcheck on the plain builds: no invalid access, nothing definitely or
     // indirectly lost.
     let vg = |prog: &str, args: Vec<std::ffi::OsString>| {
@@ -343,6 +358,7 @@ fn c_programs_run_clean_under_asan_and_valgrind() {
         "denoise under valgrind",
         vg("denoise", denoise_args("vg.pfm")),
     );
+    check("buffers under valgrind", vg("buffers", vec![]));
     assert_eq!(
         read_pfm(&dir.join("asan.pfm")).2,
         read_pfm(&dir.join("vg.pfm")).2

@@ -97,14 +97,16 @@ fn c_denoise(arch: &str, color: &[f32], w: usize, h: usize, aux: &Aux) -> Vec<f3
     let mut out = vec![-1f32; w * h * 3];
     let dev = temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT);
     temcCommitDevice(dev);
-    let f = temcNewFilter(dev, c(&arch.to_uppercase()).as_ptr());
-    temcSetSharedFilterData(
-        f,
-        c("weights").as_ptr(),
-        weights.as_ptr() as *mut _,
-        weights.len(),
-    );
-    let set = |name: &str, p: *const f32, format| {
+    let f = unsafe { temcNewFilter(dev, c(&arch.to_uppercase()).as_ptr()) };
+    unsafe {
+        temcSetSharedFilterData(
+            f,
+            c("weights").as_ptr(),
+            weights.as_ptr() as *mut _,
+            weights.len(),
+        );
+    }
+    let set = |name: &str, p: *const f32, format| unsafe {
         temcSetSharedFilterImage(f, c(name).as_ptr(), p as *mut _, format, w, h, 0, 0, 0)
     };
     set("color", color.as_ptr(), TEMC_FORMAT_FLOAT3);
@@ -286,30 +288,34 @@ fn absurd_sizes_are_refused_before_allocation() {
     // Through the C ABI: 65536 x 65536 over a dummy pointer is refused at once.
     let d = temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT);
     temcCommitDevice(d);
-    let cf = temcNewFilter(d, c("AE").as_ptr());
-    temcSetSharedFilterImage(
-        cf,
-        c("color").as_ptr(),
-        tiny.as_ptr() as *mut _,
-        TEMC_FORMAT_FLOAT3,
-        65536,
-        65536,
-        0,
-        0,
-        0,
-    );
+    let cf = unsafe { temcNewFilter(d, c("AE").as_ptr()) };
+    unsafe {
+        temcSetSharedFilterImage(
+            cf,
+            c("color").as_ptr(),
+            tiny.as_ptr() as *mut _,
+            TEMC_FORMAT_FLOAT3,
+            65536,
+            65536,
+            0,
+            0,
+            0,
+        );
+    }
     assert_eq!(c_error(d), TEMC_ERROR_INVALID_ARGUMENT);
-    temcSetSharedFilterImage(
-        cf,
-        c("color").as_ptr(),
-        tiny.as_ptr() as *mut _,
-        TEMC_FORMAT_FLOAT3,
-        4,
-        4,
-        0,
-        usize::MAX,
-        0,
-    );
+    unsafe {
+        temcSetSharedFilterImage(
+            cf,
+            c("color").as_ptr(),
+            tiny.as_ptr() as *mut _,
+            TEMC_FORMAT_FLOAT3,
+            4,
+            4,
+            0,
+            usize::MAX,
+            0,
+        );
+    }
     assert_eq!(c_error(d), TEMC_ERROR_INVALID_ARGUMENT);
     temcReleaseFilter(cf);
     temcReleaseDevice(d);
@@ -429,35 +435,41 @@ fn a_released_filter_stays_valid_while_another_thread_retains_it() {
     let mut out = vec![0f32; w * h * 3];
     let dev = temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT);
     temcCommitDevice(dev);
-    let f = temcNewFilter(dev, c("AE").as_ptr());
-    temcSetSharedFilterData(
-        f,
-        c("weights").as_ptr(),
-        weights.as_ptr() as *mut _,
-        weights.len(),
-    );
-    temcSetSharedFilterImage(
-        f,
-        c("color").as_ptr(),
-        color.as_ptr() as *mut _,
-        TEMC_FORMAT_FLOAT3,
-        w,
-        h,
-        0,
-        0,
-        0,
-    );
-    temcSetSharedFilterImage(
-        f,
-        c("output").as_ptr(),
-        out.as_mut_ptr() as *mut _,
-        TEMC_FORMAT_FLOAT3,
-        w,
-        h,
-        0,
-        0,
-        0,
-    );
+    let f = unsafe { temcNewFilter(dev, c("AE").as_ptr()) };
+    unsafe {
+        temcSetSharedFilterData(
+            f,
+            c("weights").as_ptr(),
+            weights.as_ptr() as *mut _,
+            weights.len(),
+        );
+    }
+    unsafe {
+        temcSetSharedFilterImage(
+            f,
+            c("color").as_ptr(),
+            color.as_ptr() as *mut _,
+            TEMC_FORMAT_FLOAT3,
+            w,
+            h,
+            0,
+            0,
+            0,
+        );
+    }
+    unsafe {
+        temcSetSharedFilterImage(
+            f,
+            c("output").as_ptr(),
+            out.as_mut_ptr() as *mut _,
+            TEMC_FORMAT_FLOAT3,
+            w,
+            h,
+            0,
+            0,
+            0,
+        );
+    }
     temcCommitFilter(f);
     temcRetainFilter(f);
     temcRetainDevice(dev);

@@ -98,108 +98,118 @@ fuzz_target!(|data: &[u8]| {
         let Some(name) = b.pick(&names).map(|n| n.as_ptr()) else {
             break;
         };
-        match op % 18 {
-            0 => devices.push(temcNewDevice((op / 18) as u32 % 3)),
-            1 => temcCommitDevice(dev(&mut b)),
-            2 => {
-                let v = b.i32().unwrap_or(0);
-                temcSetDeviceInt(dev(&mut b), name, v);
-            }
-            3 => {
-                let _ = temcGetDeviceInt(dev(&mut b), name);
-            }
-            4 => {
-                let Some(kind) = b.pick(&kinds).map(|k| k.as_ptr()) else {
-                    break;
-                };
-                filters.push(temcNewFilter(dev(&mut b), kind));
-            }
-            5 => {
-                let (Some(&format), Some(w), Some(h), Some(off), Some(ps), Some(rs), Some(out)) = (
-                    b.pick(&formats),
-                    b.u8(),
-                    b.u8(),
-                    b.u8(),
-                    b.u8(),
-                    b.u8(),
-                    b.u8(),
-                ) else {
-                    break;
-                };
-                let (w, h) = (w as usize % 24, h as usize % 24);
-                let (off, ps, rs) = (off as usize % 32, ps as usize % 40, (rs as usize % 8) * 64);
-                // The harness only describes memory it owns.
-                let px = if ps == 0 { 16 } else { ps.max(16) };
-                let row = if rs == 0 { px * w } else { rs.max(px * w) };
-                if off + h * row + px > BUF_BYTES {
-                    continue;
+        // SAFETY: every pointer handed to the C ABI is NULL, a NUL-terminated name from
+        // `names`/`kinds`, or a buffer of this function that outlives the filters using it.
+        unsafe {
+            match op % 18 {
+                0 => devices.push(temcNewDevice((op / 18) as u32 % 3)),
+                1 => temcCommitDevice(dev(&mut b)),
+                2 => {
+                    let v = b.i32().unwrap_or(0);
+                    temcSetDeviceInt(dev(&mut b), name, v);
                 }
-                let ptr = if out % 2 == 0 {
-                    input.as_mut_ptr()
-                } else {
-                    output.as_mut_ptr()
-                };
-                temcSetSharedFilterImage(
-                    filt(&mut b),
-                    name,
-                    ptr as *mut c_void,
-                    format,
-                    w,
-                    h,
-                    off,
-                    ps,
-                    rs,
-                );
-            }
-            6 => temcUnsetFilterImage(filt(&mut b), name),
-            7 => {
-                let Some(choice) = b.u8() else { break };
-                if choice % 2 == 0 {
-                    temcSetSharedFilterData(
+                3 => {
+                    let _ = temcGetDeviceInt(dev(&mut b), name);
+                }
+                4 => {
+                    let Some(kind) = b.pick(&kinds).map(|k| k.as_ptr()) else {
+                        break;
+                    };
+                    filters.push(temcNewFilter(dev(&mut b), kind));
+                }
+                5 => {
+                    let (Some(&format), Some(w), Some(h), Some(off), Some(ps), Some(rs), Some(out)) = (
+                        b.pick(&formats),
+                        b.u8(),
+                        b.u8(),
+                        b.u8(),
+                        b.u8(),
+                        b.u8(),
+                        b.u8(),
+                    ) else {
+                        break;
+                    };
+                    let (w, h) = (w as usize % 24, h as usize % 24);
+                    let (off, ps, rs) =
+                        (off as usize % 32, ps as usize % 40, (rs as usize % 8) * 64);
+                    // The harness only describes memory it owns.
+                    let px = if ps == 0 { 16 } else { ps.max(16) };
+                    let row = if rs == 0 { px * w } else { rs.max(px * w) };
+                    if off + h * row + px > BUF_BYTES {
+                        continue;
+                    }
+                    let ptr = if out % 2 == 0 {
+                        input.as_mut_ptr()
+                    } else {
+                        output.as_mut_ptr()
+                    };
+                    temcSetSharedFilterImage(
                         filt(&mut b),
                         name,
-                        AE.as_ptr() as *mut c_void,
-                        AE.len(),
+                        ptr as *mut c_void,
+                        format,
+                        w,
+                        h,
+                        off,
+                        ps,
+                        rs,
                     );
-                } else {
-                    let rest = &data[b.1.min(data.len())..];
-                    let n = (choice as usize * 7).min(rest.len());
-                    temcSetSharedFilterData(filt(&mut b), name, rest.as_ptr() as *mut c_void, n);
                 }
-            }
-            8 => temcUnsetFilterData(filt(&mut b), name),
-            9 => {
-                let v = b.i32().unwrap_or(0);
-                let f = filt(&mut b);
-                match v & 3 {
-                    0 => temcSetFilterBool(f, name, v & 4 != 0),
-                    1 => temcSetFilterInt(f, name, v >> 2),
-                    _ => temcSetFilterFloat(f, name, f32::from_bits(v as u32)),
+                6 => temcUnsetFilterImage(filt(&mut b), name),
+                7 => {
+                    let Some(choice) = b.u8() else { break };
+                    if choice % 2 == 0 {
+                        temcSetSharedFilterData(
+                            filt(&mut b),
+                            name,
+                            AE.as_ptr() as *mut c_void,
+                            AE.len(),
+                        );
+                    } else {
+                        let rest = &data[b.1.min(data.len())..];
+                        let n = (choice as usize * 7).min(rest.len());
+                        temcSetSharedFilterData(
+                            filt(&mut b),
+                            name,
+                            rest.as_ptr() as *mut c_void,
+                            n,
+                        );
+                    }
                 }
-            }
-            10 => {
-                let f = filt(&mut b);
-                let _ = (
-                    temcGetFilterBool(f, name),
-                    temcGetFilterInt(f, name),
-                    temcGetFilterFloat(f, name),
-                );
-            }
-            11 => temcCommitFilter(filt(&mut b)),
-            12 => temcExecuteFilter(filt(&mut b)),
-            13 => temcRetainFilter(filt(&mut b)),
-            14 => temcReleaseFilter(filt(&mut b)),
-            15 => temcRetainDevice(dev(&mut b)),
-            16 => temcReleaseDevice(dev(&mut b)),
-            _ => {
-                let f = filt(&mut b);
-                temcSetFilterProgressMonitorFunction(
-                    f,
-                    Some(monitor),
-                    &mut calls as *mut u32 as *mut c_void,
-                );
-                let mut msg = std::ptr::null();
-                let _ = unsafe { temcGetDeviceError(dev(&mut b), &mut msg) };
+                8 => temcUnsetFilterData(filt(&mut b), name),
+                9 => {
+                    let v = b.i32().unwrap_or(0);
+                    let f = filt(&mut b);
+                    match v & 3 {
+                        0 => temcSetFilterBool(f, name, v & 4 != 0),
+                        1 => temcSetFilterInt(f, name, v >> 2),
+                        _ => temcSetFilterFloat(f, name, f32::from_bits(v as u32)),
+                    }
+                }
+                10 => {
+                    let f = filt(&mut b);
+                    let _ = (
+                        temcGetFilterBool(f, name),
+                        temcGetFilterInt(f, name),
+                        temcGetFilterFloat(f, name),
+                    );
+                }
+                11 => temcCommitFilter(filt(&mut b)),
+                12 => temcExecuteFilter(filt(&mut b)),
+                13 => temcRetainFilter(filt(&mut b)),
+                14 => temcReleaseFilter(filt(&mut b)),
+                15 => temcRetainDevice(dev(&mut b)),
+                16 => temcReleaseDevice(dev(&mut b)),
+                _ => {
+                    let f = filt(&mut b);
+                    temcSetFilterProgressMonitorFunction(
+                        f,
+                        Some(monitor),
+                        &mut calls as *mut u32 as *mut c_void,
+                    );
+                    let mut msg = std::ptr::null();
+                    let _ = temcGetDeviceError(dev(&mut b), &mut msg);
+                }
             }
         }
     }

@@ -1,0 +1,356 @@
+//! The objects behind C handles, error recording, and the one guard every entry point runs in.
+
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use super::filter_state::FilterState;
+use super::registry::Registry;
+use super::*;
+use crate::filter::Device;
+use crate::Error;
+
+/// A failure to report through the C ABI: an OIDN error code and its message.
+#[derive(Debug)]
+pub(crate) struct Failure {
+    pub code: TEMCError,
+    pub message: String,
+}
+
+impl Failure {
+    pub fn new(code: TEMCError, message: impl Into<String>) -> Self {
+        Self {
+            code,
+            message: message.into(),
+        }
+    }
+
+    pub fn invalid(message: impl Into<String>) -> Self {
+        Self::new(TEMC_ERROR_INVALID_ARGUMENT, message)
+    }
+
+    pub fn operation(message: impl Into<String>) -> Self {
+        Self::new(TEMC_ERROR_INVALID_OPERATION, message)
+    }
+
+    pub fn unsupported(message: impl Into<String>) -> Self {
+        Self::new(TEMC_ERROR_UNSUPPORTED_HARDWARE, message)
+    }
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Self {
+        let code = match &e {
+            Error::InvalidArgument(_) | Error::Model(_) | Error::Io { .. } => {
+                TEMC_ERROR_INVALID_ARGUMENT
+            }
+            Error::InvalidOperation(_) => TEMC_ERROR_INVALID_OPERATION,
+            Error::Cancelled => TEMC_ERROR_CANCELLED,
+            Error::OutOfMemory(_) => TEMC_ERROR_OUT_OF_MEMORY,
+            Error::Inference(_) => TEMC_ERROR_UNKNOWN,
+        };
+        Self::new(code, e.to_string())
+    }
+}
+
+pub(crate) type Outcome<T> = Result<T, Failure>;
+
+struct ErrorState {
+    first: Option<(TEMCError, CString)>,
+    /// The message last handed out by temcGetDeviceError; valid until the next query.
+    returned: CString,
+    callback: TEMCErrorFunction,
+    user_ptr: usize,
+}
+
+/// A device: the core's [`Device`] plus the error state of the C ABI.
+pub(crate) struct DeviceObj {
+    pub device: Device,
+    errors: Mutex<ErrorState>,
+    pub set_affinity: AtomicBool,
+}
+
+impl DeviceObj {
+    pub fn new() -> Self {
+        Self {
+            device: Device::new(),
+            errors: Mutex::new(ErrorState {
+                first: None,
+                returned: CString::default(),
+                callback: None,
+                user_ptr: 0,
+            }),
+            set_affinity: AtomicBool::new(true),
+        }
+    }
+
+    fn errors(&self) -> MutexGuard<'_, ErrorState> {
+        self.errors.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    pub fn set_error_function(&self, func: TEMCErrorFunction, user_ptr: *mut c_void) {
+        let mut st = self.errors();
+        st.callback = func;
+        st.user_ptr = user_ptr as usize;
+    }
+
+    /// OIDN's warning for a parameter it does not know: printed when verbose, never an error.
+    pub fn warn(&self, message: &str) {
+        if self.device.verbose() >= 1 {
+            eprintln!("temc: warning: {message}");
+        }
+    }
+}
+
+/// A filter: its device (kept alive by the filter) and its state.
+pub(crate) struct FilterObj {
+    pub device: Arc<DeviceObj>,
+    pub state: Mutex<FilterState>,
+}
+
+impl FilterObj {
+    pub fn lock(&self) -> MutexGuard<'_, FilterState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// A buffer: host memory, owned (New*Buffer) or the caller's (NewSharedBuffer).
+pub(crate) struct BufferObj {
+    pub device: Arc<DeviceObj>,
+    pub ptr: *mut u8,
+    pub size: usize,
+    pub storage: TEMCStorage,
+    /// The allocation to free, for owned buffers.
+    owned: Option<std::alloc::Layout>,
+}
+
+// SAFETY: the buffer's bytes are plain memory; concurrent access to them is the C
+// caller's responsibility, as in OIDN. The struct itself is immutable after creation.
+unsafe impl Send for BufferObj {}
+unsafe impl Sync for BufferObj {}
+
+/// Owned buffers are aligned for any SIMD load the core might use.
+const BUFFER_ALIGN: usize = 64;
+
+impl BufferObj {
+    /// A zeroed host buffer of `size` bytes.
+    pub fn owned(device: Arc<DeviceObj>, size: usize, storage: TEMCStorage) -> Outcome<Self> {
+        if size == 0 {
+            return Ok(Self {
+                device,
+                ptr: std::ptr::null_mut(),
+                size,
+                storage,
+                owned: None,
+            });
+        }
+        let layout = std::alloc::Layout::from_size_align(size, BUFFER_ALIGN).map_err(|_| {
+            Failure::new(
+                TEMC_ERROR_OUT_OF_MEMORY,
+                format!("buffer of {size} bytes is too large"),
+            )
+        })?;
+        // SAFETY: the layout has a non-zero size.
+        let ptr = unsafe { std::alloc::alloc_zeroed(layout) };
+        if ptr.is_null() {
+            return Err(Failure::new(
+                TEMC_ERROR_OUT_OF_MEMORY,
+                format!("cannot allocate a buffer of {size} bytes"),
+            ));
+        }
+        Ok(Self {
+            device,
+            ptr,
+            size,
+            storage,
+            owned: Some(layout),
+        })
+    }
+
+    /// A buffer over the caller's memory (which must outlive it).
+    pub fn shared(device: Arc<DeviceObj>, ptr: *mut u8, size: usize) -> Self {
+        Self {
+            device,
+            ptr,
+            size,
+            storage: TEMC_STORAGE_HOST,
+            owned: None,
+        }
+    }
+
+    /// Checks that `[offset, offset + len)` lies in the buffer.
+    pub fn check_range(&self, offset: usize, len: usize) -> Outcome<()> {
+        match offset.checked_add(len) {
+            Some(end) if end <= self.size => Ok(()),
+            _ => Err(Failure::invalid(format!(
+                "range of {len} bytes at offset {offset} exceeds the buffer's {} bytes",
+                self.size
+            ))),
+        }
+    }
+}
+
+impl Drop for BufferObj {
+    fn drop(&mut self) {
+        if let Some(layout) = self.owned {
+            // SAFETY: allocated in `owned` with this layout; no image refers to it any more
+            // (filters hold the buffer while an image of it is set).
+            unsafe { std::alloc::dealloc(self.ptr, layout) };
+        }
+    }
+}
+
+/// The live devices, filters and buffers.
+pub(crate) static DEVICES: Registry<DeviceObj> = Registry::new(1);
+pub(crate) static FILTERS: Registry<FilterObj> = Registry::new(2);
+pub(crate) static BUFFERS: Registry<BufferObj> = Registry::new(3);
+
+thread_local! {
+    /// Errors with no device to hold them (device creation, NULL or dead handles), per
+    /// thread as in OIDN: the slot and the message last handed out.
+    static GLOBAL_ERROR: std::cell::RefCell<(Option<(TEMCError, CString)>, CString)> =
+        std::cell::RefCell::new((None, CString::default()));
+}
+
+fn cstring(s: String) -> CString {
+    CString::new(s.replace('\0', " ")).unwrap_or_default()
+}
+
+/// Stores an error (the first one wins until queried) and calls the device's error
+/// function. The function is called after the lock is released, so it may call back into
+/// temc (temcGetDeviceError included) without deadlocking.
+pub(crate) fn record(device: Option<&DeviceObj>, code: TEMCError, message: String) {
+    let message = cstring(message);
+    match device {
+        Some(d) => {
+            let callback = {
+                let mut st = d.errors();
+                if st.first.is_none() {
+                    st.first = Some((code, message.clone()));
+                }
+                st.callback.map(|cb| (cb, st.user_ptr))
+            };
+            if let Some((cb, user)) = callback {
+                // SAFETY: the caller registered this function for exactly these arguments
+                // (temcSetDeviceErrorFunction's contract).
+                unsafe { cb(user as *mut c_void, code, message.as_ptr()) };
+            }
+        }
+        None => GLOBAL_ERROR.with(|g| {
+            let mut g = g.borrow_mut();
+            if g.0.is_none() {
+                g.0 = Some((code, message));
+            }
+        }),
+    }
+}
+
+/// Takes the first unqueried error of `device` (or of this thread, for None); the message
+/// pointer stays valid until the next query.
+pub(crate) fn take_error(device: Option<&DeviceObj>) -> (TEMCError, *const c_char) {
+    let take = |slot: &mut Option<(TEMCError, CString)>, returned: &mut CString| {
+        let (c, m) = slot.take().unwrap_or((TEMC_ERROR_NONE, CString::default()));
+        *returned = m;
+        let p = if c == TEMC_ERROR_NONE {
+            std::ptr::null()
+        } else {
+            returned.as_ptr()
+        };
+        (c, p)
+    };
+    match device {
+        Some(d) => {
+            let mut st = d.errors();
+            let st = &mut *st;
+            take(&mut st.first, &mut st.returned)
+        }
+        None => GLOBAL_ERROR.with(|g| {
+            let mut g = g.borrow_mut();
+            let (slot, returned) = &mut *g;
+            take(slot, returned)
+        }),
+    }
+}
+
+/// What an entry point has resolved so far: the device its errors go to.
+pub(crate) struct Call {
+    device: Option<Arc<DeviceObj>>,
+}
+
+impl Call {
+    /// The live device behind `h`; its errors are recorded on it from now on.
+    pub fn device(&mut self, h: TEMCDevice) -> Outcome<Arc<DeviceObj>> {
+        if h.is_null() {
+            return Err(Failure::invalid("NULL device"));
+        }
+        let d = DEVICES
+            .get(h.addr())
+            .ok_or_else(|| Failure::invalid("invalid or released device handle"))?;
+        self.device = Some(d.clone());
+        Ok(d)
+    }
+
+    /// The live filter behind `h`; errors go to its device.
+    pub fn filter(&mut self, h: TEMCFilter) -> Outcome<Arc<FilterObj>> {
+        if h.is_null() {
+            return Err(Failure::invalid("NULL filter"));
+        }
+        let f = FILTERS
+            .get(h.addr())
+            .ok_or_else(|| Failure::invalid("invalid or released filter handle"))?;
+        self.device = Some(f.device.clone());
+        Ok(f)
+    }
+
+    /// The live buffer behind `h`; errors go to its device.
+    pub fn buffer(&mut self, h: TEMCBuffer) -> Outcome<Arc<BufferObj>> {
+        if h.is_null() {
+            return Err(Failure::invalid("NULL buffer"));
+        }
+        let b = BUFFERS
+            .get(h.addr())
+            .ok_or_else(|| Failure::invalid("invalid or released buffer handle"))?;
+        self.device = Some(b.device.clone());
+        Ok(b)
+    }
+}
+
+/// Runs an entry point's body: catches panics, records a failure (or a panic) on the
+/// device the body resolved (or as this thread's global error), and returns `fallback`
+/// then. Every extern "C" function of the ABI goes through here, so no panic crosses into
+/// C and every failure is reported one way.
+pub(crate) fn guarded<T>(fallback: T, body: impl FnOnce(&mut Call) -> Outcome<T>) -> T {
+    let mut call = Call { device: None };
+    let result = catch_unwind(AssertUnwindSafe(|| body(&mut call)));
+    let failure = match result {
+        Ok(Ok(v)) => return v,
+        Ok(Err(f)) => f,
+        Err(_) => Failure::new(TEMC_ERROR_UNKNOWN, "internal error (panic)"),
+    };
+    // Recording cannot panic in practice; if it did, swallowing it is still better than
+    // unwinding into C.
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        record(call.device.as_deref(), failure.code, failure.message)
+    }));
+    fallback
+}
+
+/// Reads a parameter name.
+///
+/// # Safety
+/// `name` must be NULL or a NUL-terminated string.
+pub(crate) unsafe fn name_arg<'a>(name: *const c_char) -> Outcome<&'a str> {
+    if name.is_null() {
+        return Err(Failure::invalid("NULL name"));
+    }
+    // SAFETY: the caller passes a NUL-terminated string.
+    unsafe { CStr::from_ptr(name) }
+        .to_str()
+        .map_err(|_| Failure::invalid("name is not UTF-8"))
+}
+
+/// Whether a device's "setAffinity" is set (OIDN's default: true).
+pub(crate) fn affinity(d: &DeviceObj) -> bool {
+    d.set_affinity.load(Ordering::Relaxed)
+}

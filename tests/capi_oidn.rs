@@ -1,0 +1,444 @@
+//! The C ABI's OIDN 2.x semantics, driven from Rust: what a renderer renamed from OIDN
+//! relies on (filter types, defaults, warnings instead of errors, buffers, GPU types), the
+//! soundness rules (stale handles, an error callback that queries the error), aux
+//! prefiltering and spectral input.
+
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use temc::capi::*;
+use temc::filter::{Device, Filter, Quality};
+
+fn c(s: &str) -> CString {
+    CString::new(s).unwrap()
+}
+
+fn error(dev: TEMCDevice) -> (TEMCError, String) {
+    let mut msg: *const c_char = std::ptr::null();
+    let code = unsafe { temcGetDeviceError(dev, &mut msg) };
+    let text = if msg.is_null() {
+        String::new()
+    } else {
+        unsafe { CStr::from_ptr(msg) }
+            .to_string_lossy()
+            .into_owned()
+    };
+    (code, text)
+}
+
+fn device() -> TEMCDevice {
+    let d = temcNewDevice(TEMC_DEVICE_TYPE_CPU);
+    temcCommitDevice(d);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    d
+}
+
+fn geti(f: TEMCFilter, name: &str) -> i32 {
+    unsafe { temcGetFilterInt(f, c(name).as_ptr()) }
+}
+
+fn seti(f: TEMCFilter, name: &str, v: i32) {
+    unsafe { temcSetFilterInt(f, c(name).as_ptr(), v) }
+}
+
+fn set_image(f: TEMCFilter, name: &str, p: *const f32, format: TEMCFormat, w: usize, h: usize) {
+    unsafe { temcSetSharedFilterImage(f, c(name).as_ptr(), p as *mut _, format, w, h, 0, 0, 0) }
+}
+
+/// Smooth colour with a little deterministic noise.
+fn image(w: usize, h: usize) -> Vec<f32> {
+    (0..w * h * 3)
+        .map(|i| {
+            0.3 + 0.2 * ((i / 3 % w) as f32 / w as f32) + 0.05 * ((i * 7919 % 13) as f32 / 13.0)
+        })
+        .collect()
+}
+
+#[test]
+fn rt_filters_have_oidns_defaults_and_parameter_rules() {
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    assert!(!f.is_null(), "{:?}", error(d));
+    assert_eq!(geti(f, "hdr"), 0, "OIDN's hdr default is false");
+    assert_eq!(geti(f, "quality"), TEMC_QUALITY_HIGH as i32);
+    assert_eq!(geti(f, "maxMemoryMB"), -1);
+    // Bools through ints and back, OIDN's other names, and unknown names: no errors.
+    seti(f, "hdr", 1);
+    assert!(unsafe { temcGetFilterBool(f, c("hdr").as_ptr()) });
+    unsafe { temcSetFilterBool(f, c("srgb").as_ptr(), true) };
+    unsafe { temcSetFilterBool(f, c("cleanAux").as_ptr(), true) };
+    assert_eq!(geti(f, "srgb"), 1);
+    assert_eq!(geti(f, "cleanAux"), 1);
+    unsafe { temcSetFilterFloat(f, c("hdrScale").as_ptr(), 2.0) };
+    assert_eq!(
+        unsafe { temcGetFilterFloat(f, c("inputScale").as_ptr()) },
+        2.0
+    );
+    seti(f, "noSuchParameter", 3);
+    unsafe { temcSetFilterFloat(f, c("noSuchFloat").as_ptr(), 1.0) };
+    seti(f, "alignment", 3);
+    seti(f, "maxMemoryMB", 512);
+    assert_eq!(geti(f, "maxMemoryMB"), 512);
+    seti(f, "maxMemoryMB", -1);
+    assert_eq!(geti(f, "maxMemoryMB"), -1);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "OIDN only warns");
+    // A real misuse is still an error.
+    seti(f, "quality", 3);
+    assert_eq!(error(d).0, TEMC_ERROR_INVALID_ARGUMENT);
+
+    // alignment and overlap come from the committed model.
+    let (w, h) = (24, 16);
+    let color = image(w, h);
+    let mut out = vec![0f32; w * h * 3];
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    temcCommitFilter(f);
+    assert!(geti(f, "alignment") >= 1 && geti(f, "tileAlignment") == geti(f, "alignment"));
+    assert!(geti(f, "overlap") > 0 && geti(f, "tileOverlap") == geti(f, "overlap"));
+    temcExecuteFilterAsync(f);
+    temcSyncDevice(d);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    assert!(out.iter().all(|v| v.is_finite()) && out.iter().any(|&v| v > 0.0));
+
+    // RTLightmap: colour only; "directional" refused with a clear message.
+    let l = unsafe { temcNewFilter(d, c("RTLightmap").as_ptr()) };
+    assert_eq!(geti(l, "hdr"), 1);
+    seti(l, "directional", 0);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    seti(l, "directional", 1);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_INVALID_ARGUMENT);
+    assert!(msg.contains("directional"), "{msg}");
+    temcReleaseFilter(l);
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+#[test]
+fn devices_report_oidn_2x_and_refuse_gpus_as_unsupported_hardware() {
+    for t in [
+        TEMC_DEVICE_TYPE_SYCL,
+        TEMC_DEVICE_TYPE_CUDA,
+        TEMC_DEVICE_TYPE_HIP,
+        TEMC_DEVICE_TYPE_METAL,
+    ] {
+        assert!(temcNewDevice(t).is_null());
+        assert_eq!(
+            error(std::ptr::null_mut()).0,
+            TEMC_ERROR_UNSUPPORTED_HARDWARE
+        );
+    }
+    assert!(temcNewCUDADevice(std::ptr::null(), std::ptr::null(), 0).is_null());
+    assert_eq!(
+        error(std::ptr::null_mut()).0,
+        TEMC_ERROR_UNSUPPORTED_HARDWARE
+    );
+    assert_eq!(temcGetNumPhysicalDevices(), 1);
+    assert_eq!(
+        unsafe { temcGetPhysicalDeviceInt(0, c("type").as_ptr()) },
+        TEMC_DEVICE_TYPE_CPU as i32
+    );
+    assert!(!unsafe { temcGetPhysicalDeviceString(0, c("name").as_ptr()) }.is_null());
+    let d = temcNewDeviceByID(0);
+    assert!(!d.is_null());
+    let get = |n: &str| unsafe { temcGetDeviceInt(d, c(n).as_ptr()) };
+    assert_eq!(get("version"), 20300);
+    assert_eq!(get("versionMajor"), 2);
+    assert_eq!(get("type"), TEMC_DEVICE_TYPE_CPU as i32);
+    unsafe { temcSetDeviceBool(d, c("setAffinity").as_ptr(), false) };
+    assert!(!unsafe { temcGetDeviceBool(d, c("setAffinity").as_ptr()) });
+    unsafe { temcSetDeviceInt(d, c("noSuchParameter").as_ptr(), 1) };
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    temcReleaseDevice(d);
+}
+
+static CALLS: AtomicUsize = AtomicUsize::new(0);
+
+/// Queries the error from inside the callback, as some renderers' handlers do: it must
+/// not deadlock (no lock is held while the callback runs).
+unsafe extern "C" fn query_inside(user: *mut c_void, code: TEMCError, msg: *const c_char) {
+    assert_ne!(code, TEMC_ERROR_NONE);
+    assert!(!msg.is_null());
+    let dev = user as TEMCDevice;
+    let got = unsafe { temcGetDeviceError(dev, std::ptr::null_mut()) };
+    assert_eq!(got, code, "the error is stored before the callback runs");
+    CALLS.fetch_add(1, Ordering::SeqCst);
+}
+
+#[test]
+fn an_error_callback_may_query_the_error_and_stale_handles_stay_dead() {
+    let d = device();
+    unsafe { temcSetDeviceErrorFunction(d, Some(query_inside), d as *mut c_void) };
+    let f = unsafe { temcNewFilter(d, c("NOPE").as_ptr()) };
+    assert!(f.is_null());
+    assert_eq!(CALLS.load(Ordering::SeqCst), 1);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "the callback took it");
+
+    // A released handle stays dead even when its slot is reused.
+    let f1 = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    temcReleaseFilter(f1);
+    let f2 = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    assert_ne!(f1, f2);
+    temcCommitFilter(f1);
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    // A filter handle is not a device handle.
+    temcCommitDevice(f2 as TEMCDevice);
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    temcReleaseFilter(f2);
+    temcReleaseDevice(d);
+}
+
+#[test]
+fn buffers_hold_images_and_copy_data() {
+    let d = device();
+    let (w, h) = (20, 12);
+    let bytes = w * h * 3 * 4;
+    let color = image(w, h);
+    let b = temcNewBuffer(d, bytes);
+    assert_eq!(temcGetBufferSize(b), bytes);
+    assert_eq!(temcGetBufferStorage(b), TEMC_STORAGE_HOST);
+    unsafe { temcWriteBufferAsync(b, 0, bytes, color.as_ptr() as *const c_void) };
+    let mut back = vec![0f32; w * h * 3];
+    unsafe { temcReadBuffer(b, 0, bytes, back.as_mut_ptr() as *mut c_void) };
+    assert_eq!(back, color);
+    unsafe { temcReadBuffer(b, 8, bytes, back.as_mut_ptr() as *mut c_void) };
+    assert_eq!(error(d).0, TEMC_ERROR_INVALID_ARGUMENT, "read past the end");
+
+    // Denoise in place in the buffer, against the Rust API on the same input.
+    let f = unsafe { temcNewFilter(d, c("TEMC2").as_ptr()) };
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    for name in ["color", "output"] {
+        unsafe { temcSetFilterImage(f, c(name).as_ptr(), b, TEMC_FORMAT_FLOAT3, w, h, 0, 0, 0) };
+    }
+    unsafe {
+        temcSetFilterImage(
+            f,
+            c("albedo").as_ptr(),
+            b,
+            TEMC_FORMAT_FLOAT3,
+            w,
+            h + 1,
+            0,
+            0,
+            0,
+        )
+    };
+    assert_eq!(
+        error(d).0,
+        TEMC_ERROR_INVALID_ARGUMENT,
+        "image larger than its buffer"
+    );
+    // The filter holds the buffer: releasing the handle keeps the memory.
+    let data = temcGetBufferData(b) as *const f32;
+    temcRetainBuffer(b);
+    temcReleaseBuffer(b);
+    temcReleaseBuffer(b);
+    assert_eq!(temcGetBufferSize(b), 0);
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    let from_c = unsafe { std::slice::from_raw_parts(data, w * h * 3) }.to_vec();
+
+    let dev = Device::new();
+    dev.commit().unwrap();
+    let mut rf = Filter::new(&dev, "TEMC2").unwrap();
+    rf.set_quality(Quality::Fast);
+    rf.set_input_f32("color", &color, w, h).unwrap();
+    rf.commit().unwrap();
+    assert_eq!(from_c, rf.execute_to_vec().unwrap().0);
+    temcReleaseFilter(f);
+
+    // A shared buffer wraps the caller's memory.
+    let mut mine = vec![1f32; 16];
+    let s = unsafe { temcNewSharedBuffer(d, mine.as_mut_ptr() as *mut c_void, 64) };
+    assert_eq!(temcGetBufferData(s), mine.as_mut_ptr() as *mut c_void);
+    unsafe { temcWriteBuffer(s, 4, 4, [5f32].as_ptr() as *const c_void) };
+    temcReleaseBuffer(s);
+    assert_eq!(mine[1], 5.0);
+    temcReleaseDevice(d);
+}
+
+#[test]
+fn an_rt_filter_with_only_albedo_prefilters_it() {
+    let (w, h) = (64, 48);
+    let clean: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            if i % w < w / 2 {
+                [0.8, 0.2, 0.2]
+            } else {
+                [0.1, 0.5, 0.7]
+            }
+        })
+        .collect();
+    let noisy: Vec<f32> = clean
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| v + 0.1 * (((i * 2654435761) % 1000) as f32 / 1000.0 - 0.5))
+        .collect();
+    let mut out = vec![-1f32; w * h * 3];
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    set_image(f, "albedo", noisy.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d), (TEMC_ERROR_NONE, String::new()));
+    let before = temc::prefilter::rel_mse(&noisy, &clean);
+    let after = temc::prefilter::rel_mse(&out, &clean);
+    eprintln!("RT albedo prefilter: RelMSE {before:.5} -> {after:.5}");
+    assert!(after < before / 3.0, "{before} -> {after}");
+    // With albedo and normal but no colour, it is the ordinary error.
+    let normal = vec![0f32; w * h * 3];
+    set_image(f, "normal", normal.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_ne!(error(d).0, TEMC_ERROR_NONE);
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+#[test]
+fn spectral_input_equals_its_cmf_conversion_as_colour() {
+    let (w, h, n) = (16, 12, 8usize);
+    let spectral: Vec<f32> = (0..w * h * n)
+        .map(|i| 0.2 + 0.6 * ((i % n) as f32 / n as f32) * ((i / n % w) as f32 / w as f32))
+        .collect();
+    let edges: Vec<f32> = (0..=n)
+        .map(|i| 400.0 + 300.0 * i as f32 / n as f32)
+        .collect();
+    let bands = temc::color::SpectralBands::new(&edges).unwrap();
+    let rgb: Vec<f32> = spectral
+        .chunks_exact(n)
+        .flat_map(|s| bands.to_linear_srgb(s))
+        .collect();
+
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("TEMC2").as_ptr()) };
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    let mut out = vec![0f32; w * h * 3];
+    set_image(f, "spectral", spectral.as_ptr(), TEMC_FORMAT_FLOAT, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_INVALID_ARGUMENT);
+    assert!(msg.contains("spectralBands"), "{msg}");
+    seti(f, "spectralBands", n as i32);
+    unsafe { temcSetFilterFloat(f, c("spectralMin").as_ptr(), 400.0) };
+    unsafe { temcSetFilterFloat(f, c("spectralMax").as_ptr(), 700.0) };
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d), (TEMC_ERROR_NONE, String::new()));
+
+    let dev = Device::new();
+    dev.commit().unwrap();
+    let mut rf = Filter::new(&dev, "TEMC2").unwrap();
+    rf.set_quality(Quality::Fast);
+    rf.set_input_f32("color", &rgb, w, h).unwrap();
+    rf.commit().unwrap();
+    assert_eq!(out, rf.execute_to_vec().unwrap().0);
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.0031308 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// OIDN's "srgb" (LDR input): the colour is decoded to linear before denoising and the
+/// output encoded again, the same as doing it around the Rust API.
+#[test]
+fn srgb_ldr_input_is_linearised_and_the_output_encoded() {
+    let (w, h) = (20, 14);
+    let color: Vec<f32> = image(w, h).iter().map(|v| v.min(1.0)).collect();
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    unsafe { temcSetFilterBool(f, c("srgb").as_ptr(), true) };
+    let mut out = vec![0f32; w * h * 3];
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d), (TEMC_ERROR_NONE, String::new()));
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+
+    let linear: Vec<f32> = color.iter().map(|&v| srgb_to_linear(v)).collect();
+    let dev = Device::new();
+    dev.commit().unwrap();
+    let mut rf = Filter::new(&dev, "TEMC2").unwrap();
+    rf.set_quality(Quality::Fast);
+    rf.set_hdr(false);
+    rf.set_input_f32("color", &linear, w, h).unwrap();
+    rf.commit().unwrap();
+    let expected: Vec<f32> = rf
+        .execute_to_vec()
+        .unwrap()
+        .0
+        .iter()
+        .map(|&v| linear_to_srgb(v))
+        .collect();
+    assert_eq!(out, expected);
+}
+
+/// Many threads create, retain, release and misuse handles at once: stale handles are
+/// errors every time (never a crash or another object), live ones keep working.
+#[test]
+fn concurrent_handle_churn_never_confuses_handles() {
+    let d = device();
+    let shared = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    let (dh, sh) = (d as usize, shared as usize);
+    let workers: Vec<_> = (0..4)
+        .map(|t| {
+            std::thread::spawn(move || {
+                let (d, shared) = (dh as TEMCDevice, sh as TEMCFilter);
+                let mut stale = Vec::new();
+                for i in 0..200 {
+                    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+                    assert!(!f.is_null());
+                    temcRetainFilter(f);
+                    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+                    temcReleaseFilter(f);
+                    assert_eq!(geti(f, "quality"), TEMC_QUALITY_FAST as i32);
+                    temcReleaseFilter(f);
+                    stale.push(f);
+                    // The shared filter stays usable throughout.
+                    assert_eq!(geti(shared, "hdr"), 0, "thread {t}, round {i}");
+                    let b = temcNewBuffer(d, 64);
+                    temcReleaseBuffer(b);
+                    stale.push(b as TEMCFilter);
+                }
+                let mut refused = 0;
+                for f in stale {
+                    temcCommitFilter(f);
+                    let mut msg = std::ptr::null();
+                    if unsafe { temcGetDeviceError(std::ptr::null_mut(), &mut msg) }
+                        == TEMC_ERROR_INVALID_ARGUMENT
+                    {
+                        refused += 1;
+                    }
+                }
+                refused
+            })
+        })
+        .collect();
+    for w in workers {
+        assert_eq!(w.join().unwrap(), 400, "every stale handle is refused");
+    }
+    temcReleaseFilter(shared);
+    temcReleaseDevice(d);
+}
