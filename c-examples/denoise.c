@@ -4,7 +4,7 @@
  *           -o OUTPUT.pfm
  *
  * Without -m the library's built-in TEMC-2 model for the quality mode runs; MODEL.onnx is
- * any temc model file (onnx/baselines/ holds the others). */
+ * any temc model file. */
 #include <stdio.h>
 #include <string.h>
 

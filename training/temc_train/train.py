@@ -67,13 +67,13 @@ def denoise(model, xs, rs: dict):
     return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"])
 
 
-def validate(model, val, alpha, rs, batch=8, device="cpu") -> float:
+def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
     model.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for i in range(0, len(val[0]), batch):
             xs = [torch.from_numpy(v[i:i + batch]).to(device) for v in val]
-            total += float(training_loss(denoise(model, xs, rs), xs[5], alpha)) * len(xs[0])
+            total += float(training_loss(denoise(model, xs, rs), xs[5], alpha, rel)) * len(xs[0])
             n += len(xs[0])
     model.train()
     return total / max(n, 1)
@@ -222,7 +222,7 @@ def train(a) -> dict:
             _save(ck, ckpt_path)
 
     if state["step"] == 0:
-        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, device=device):.6f}", device.type])
+        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, a.rel_weight, device=device):.6f}", device.type])
         log.flush()
     model.train()
     loader = batches(train_scenes)
@@ -233,7 +233,7 @@ def train(a) -> dict:
         arrays = data.batch(train_scenes, rng, a.batch, a.crop) if loader is None else next(loader)
         xs = [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(device, non_blocking=True)
               for v in arrays]
-        loss = training_loss(denoise(model, xs, rs), xs[5], a.alpha)
+        loss = training_loss(denoise(model, xs, rs), xs[5], a.alpha, a.rel_weight)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -247,7 +247,7 @@ def train(a) -> dict:
         now = time.monotonic()
         done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
         if now - last_val >= a.val_minutes * 60 or done:
-            v = validate(model, val, a.alpha, rs, device=device)
+            v = validate(model, val, a.alpha, rs, a.rel_weight, device=device)
             if not a.shard:
                 n = len(train_scenes)
                 train_scenes = data.refresh_split(a.data, "train", train_scenes)
@@ -302,6 +302,8 @@ def main(argv=None):
     ap.add_argument("--lr", type=float, default=1e-4)
     ap.add_argument("--alpha", type=float, default=ALPHA,
                     help="MS-SSIM weight of the mix loss (the paper's 0.84; 0 = L1 only)")
+    ap.add_argument("--rel-weight", type=float, default=0.0,
+                    help="weight of the relative L1 on linear values added to the mix loss")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--val-minutes", type=float, default=5.0)
