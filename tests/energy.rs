@@ -55,7 +55,12 @@ fn check(what: &str, noisy: &[f32], out: &[f32]) {
             a[k]
         );
     }
-    println!("{what}: output/input mean {:.4} {:.4} {:.4}", b[0] / a[0], b[1] / a[1], b[2] / a[2]);
+    println!(
+        "{what}: output/input mean {:.4} {:.4} {:.4}",
+        b[0] / a[0],
+        b[1] / a[1],
+        b[2] / a[2]
+    );
 }
 
 #[test]

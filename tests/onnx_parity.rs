@@ -61,7 +61,11 @@ fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
     let got = model
         .run(input, h, w)
         .unwrap_or_else(|e| panic!("{name}: {e}"));
-    assert_eq!(got.len(), model.info().levels, "{name}: one output per level");
+    assert_eq!(
+        got.len(),
+        model.info().levels,
+        "{name}: one output per level"
+    );
     for (level, got) in got.iter().enumerate() {
         let want = common::read_npy(&golden.join(format!("filters{level}.npy")));
         let c = model.info().filter_channels();

@@ -305,7 +305,12 @@ fn pack_tile(
 }
 
 /// Stage 6 and 7: the network, then the reconstruction; returns the window's output [3, n].
-fn denoise_tile(model: &Model, p: &Packed, win: crate::tile::Rect, hdr: bool) -> Result<Vec<f32>, Error> {
+fn denoise_tile(
+    model: &Model,
+    p: &Packed,
+    win: crate::tile::Rect,
+    hdr: bool,
+) -> Result<Vec<f32>, Error> {
     let info = model.info();
     let filters = model.run(
         NetInput {
