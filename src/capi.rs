@@ -30,6 +30,32 @@ use objects::{
     affinity, guarded, name_arg, take_error, BufferObj, DeviceObj, Failure, FilterObj, Outcome,
     BUFFERS, DEVICES, FILTERS,
 };
+use registry::Registry;
+
+/// Retain for every handle kind: a dead or foreign handle is an error naming the kind.
+fn retain_in<T>(registry: &Registry<T>, handle: usize, kind: &str) -> Result<(), Failure> {
+    if registry.retain(handle) {
+        Ok(())
+    } else {
+        Err(Failure::invalid(format!(
+            "invalid or released {kind} handle"
+        )))
+    }
+}
+
+/// Release for every handle kind. The last reference's object is dropped here, outside
+/// the registry's lock (its destructor may release other objects).
+fn release_in<T>(registry: &Registry<T>, handle: usize, kind: &str) -> Result<(), Failure> {
+    match registry.release(handle) {
+        Some(last) => {
+            drop(last);
+            Ok(())
+        }
+        None => Err(Failure::invalid(format!(
+            "invalid or released {kind} handle"
+        ))),
+    }
+}
 
 /// The OIDN API version temc implements: a client's `TEMC_VERSION_MAJOR >= 2` checks
 /// take their 2.x path. (The temc library's own version is the device parameter
@@ -457,26 +483,14 @@ pub extern "C" fn temcNewMetalDevice(
 /// Adds a reference to the device.
 #[no_mangle]
 pub extern "C" fn temcRetainDevice(device: TEMCDevice) {
-    guarded((), |_| {
-        if DEVICES.retain(device.addr()) {
-            Ok(())
-        } else {
-            Err(Failure::invalid("invalid or released device handle"))
-        }
-    })
+    guarded((), |_| retain_in(&DEVICES, device.addr(), "device"))
 }
 
 /// Drops a reference; with the last one the handle is dead (filters and buffers made on
 /// the device keep what they need of it until they are released too).
 #[no_mangle]
 pub extern "C" fn temcReleaseDevice(device: TEMCDevice) {
-    guarded((), |_| match DEVICES.release(device.addr()) {
-        Some(last) => {
-            drop(last);
-            Ok(())
-        }
-        None => Err(Failure::invalid("invalid or released device handle")),
-    })
+    guarded((), |_| release_in(&DEVICES, device.addr(), "device"))
 }
 
 /// Commits the device's parameters (builds its thread pool). Required before filters run.
@@ -899,26 +913,14 @@ pub unsafe extern "C" fn temcWriteBufferAsync(
 /// Adds a reference to the buffer.
 #[no_mangle]
 pub extern "C" fn temcRetainBuffer(buffer: TEMCBuffer) {
-    guarded((), |_| {
-        if BUFFERS.retain(buffer.addr()) {
-            Ok(())
-        } else {
-            Err(Failure::invalid("invalid or released buffer handle"))
-        }
-    })
+    guarded((), |_| retain_in(&BUFFERS, buffer.addr(), "buffer"))
 }
 
 /// Drops a reference; the memory goes with the last one, or later while a filter still
 /// has an image of it set.
 #[no_mangle]
 pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
-    guarded((), |_| match BUFFERS.release(buffer.addr()) {
-        Some(last) => {
-            drop(last);
-            Ok(())
-        }
-        None => Err(Failure::invalid("invalid or released buffer handle")),
-    })
+    guarded((), |_| release_in(&BUFFERS, buffer.addr(), "buffer"))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -953,26 +955,14 @@ pub unsafe extern "C" fn temcNewFilter(
 /// Adds a reference to the filter.
 #[no_mangle]
 pub extern "C" fn temcRetainFilter(filter: TEMCFilter) {
-    guarded((), |_| {
-        if FILTERS.retain(filter.addr()) {
-            Ok(())
-        } else {
-            Err(Failure::invalid("invalid or released filter handle"))
-        }
-    })
+    guarded((), |_| retain_in(&FILTERS, filter.addr(), "filter"))
 }
 
 /// Drops a reference; the filter (with its hold on the device and buffers) goes with the
 /// last one, after any execution still running on another thread.
 #[no_mangle]
 pub extern "C" fn temcReleaseFilter(filter: TEMCFilter) {
-    guarded((), |_| match FILTERS.release(filter.addr()) {
-        Some(last) => {
-            drop(last);
-            Ok(())
-        }
-        None => Err(Failure::invalid("invalid or released filter handle")),
-    })
+    guarded((), |_| release_in(&FILTERS, filter.addr(), "filter"))
 }
 
 fn layout(
