@@ -82,7 +82,8 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, reco
         f"| parameters | {ck['params'][0]:,} convolution + {ck['params'][1]:,} batch-norm |",
         f"| file size | {size / 2**20:.1f} MiB |",
         f"| training run | training/runs/{run_name} |",
-        f"| data | {ck['dataset']}: {data_opts} |",
+        f"| data | {ck['dataset']}, as it stands now: {data_opts}; the run trained on "
+        f"{ck['train_scenes']} training scenes (the set was still rendering) |",
         f"| steps | {ck['train_steps']:,} (batch 4, random 128x128 crops, flips, rotations, aux dropout) |",
         f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, 1 thread "
         f"({hours:.2f} h); validation excluded |",
@@ -174,7 +175,10 @@ def main(argv=None):
         model, arch, width, info = load_checkpoint(ckpt_path)
         raw = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         ck = {"train_seconds": raw["state"]["train_s"], "train_steps": raw["state"]["step"],
-              "dataset": raw.get("dataset", "unknown"), "params": count_params(model)}
+              # Runs started before checkpoints named their data set trained on --data.
+              "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(a.data or "unknown")),
+              "params": count_params(model),
+              "train_scenes": raw["state"].get("train_scenes", "an unrecorded number of")}
         recon = recon_of(model)
         overlap = receptive.effective_overlap(model, recon)
         test_relmse = None

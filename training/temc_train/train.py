@@ -213,6 +213,7 @@ def train(a) -> dict:
 
     def checkpoint():
         state["rng"] = rng.bit_generator.state
+        state["train_scenes"] = len(train_scenes)  # the model card says what the run saw
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
