@@ -237,7 +237,7 @@ struct Packed {
     aux: Vec<f32>,
     /// Noisy linear radiance [3, n], sanitised (and clamped to [0, 1] in LDR mode).
     rgb: Vec<f32>,
-    /// The albedo feature [3, n] (0 where not given), for demodulation.
+    /// The albedo feature [3, n] (0 where not given) when the model demodulates; else empty.
     albedo: Vec<f32>,
 }
 
@@ -257,8 +257,24 @@ fn pack_tile(
         luma: vec![0f32; n],
         aux: vec![0f32; info.aux_channels * n],
         rgb: vec![0f32; 3 * n],
-        albedo: vec![0f32; 3 * n],
+        // Only a demodulating reconstruction reads it.
+        albedo: vec![0f32; if info.demodulate { 3 * n } else { 0 }],
     };
+    // The layout resolved once, not per pixel: (buffer, channels, first plane).
+    let mut first = 0;
+    let layout: Vec<(AuxBuffer, usize, usize)> = info
+        .aux_planes
+        .iter()
+        .map(|(name, channels)| {
+            let buffer = match name.as_str() {
+                "albedo" => AuxBuffer::Albedo,
+                "normal" => AuxBuffer::Normal,
+                _ => AuxBuffer::Depth, // metadata admits only AUX_BUFFERS
+            };
+            first += channels;
+            (buffer, *channels, first - channels)
+        })
+        .collect();
     let ldr = |c: [f32; 3]| c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) });
     for wy in 0..win.h {
         let y = reflect(win.y + wy, h);
@@ -283,25 +299,35 @@ fn pack_tile(
                 .depth
                 .as_ref()
                 .map_or(0.0, |s| features::depth(s.px(x, y)[0], stats.depth_scale));
-            for k in 0..3 {
-                p.rgb[k * n + i] = c[k];
-                p.albedo[k * n + i] = a[k];
+            for (k, &v) in c.iter().enumerate() {
+                p.rgb[k * n + i] = v;
             }
-            let mut plane = 0;
-            for (name, channels) in &info.aux_planes {
-                let v: &[f32] = match name.as_str() {
-                    "albedo" => &a,
-                    "normal" => &nm,
-                    _ => std::slice::from_ref(&d),
+            if info.demodulate {
+                for (k, &v) in a.iter().enumerate() {
+                    p.albedo[k * n + i] = v;
+                }
+            }
+            for &(buffer, channels, plane) in &layout {
+                let v: &[f32] = match buffer {
+                    AuxBuffer::Albedo => &a,
+                    AuxBuffer::Normal => &nm,
+                    AuxBuffer::Depth => std::slice::from_ref(&d),
                 };
-                for (k, &value) in v.iter().take(*channels).enumerate() {
+                for (k, &value) in v.iter().take(channels).enumerate() {
                     p.aux[(plane + k) * n + i] = value;
                 }
-                plane += channels;
             }
         }
     }
     p
+}
+
+/// The aux buffers a model's layout can name (engine::AUX_BUFFERS).
+#[derive(Clone, Copy)]
+enum AuxBuffer {
+    Albedo,
+    Normal,
+    Depth,
 }
 
 /// Stage 6 and 7: the network, then the reconstruction; returns the window's output [3, n].

@@ -21,25 +21,14 @@ import torch
 
 from . import color, data, evaluate
 from .export import load_checkpoint, recon_of
-from .reconstruct import reconstruct
+from .reconstruct import denoise_image
 
 
-@torch.no_grad()
 def denoise(model, recon, scene, s):
     """The whole noisy image `s` of `scene`, denoised as the core would (full aux)."""
     a = scene.a
-    noisy = a["color"][s]
-    scale = scene.scale[s]
-    hsv, _ = color.encode(noisy, scale)
     aux = np.moveaxis(color.aux_channels(a["albedo"][s], a["normal"][s], a["depth"][s]), 0, -1)
-    h, w = noisy.shape[:2]
-    ph, pw = (-h) % 32, (-w) % 32
-    t = lambda x: torch.from_numpy(np.moveaxis(np.pad(x, ((0, ph), (0, pw), (0, 0)), mode="reflect"), -1, 0)[None].copy())  # noqa: E731
-    hsv_t, aux_t = t(hsv), t(aux)
-    rgb = t(color.sanitize_rgb(noisy).astype(np.float32))
-    filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
-    out = reconstruct(rgb, aux_t[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"])
-    return np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
+    return denoise_image(model, recon, a["color"][s], aux, scene.scale[s])
 
 
 def evaluate_run(model, recon, scenes):

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from .models import ALIGNMENT, AUX, CHROMA, LUMA, build
-from .reconstruct import reach
+from .reconstruct import denoise_image, reach
 
 # Narrow and fast; the receptive field does not depend on the width.
 WIDTH = 0.0625
@@ -114,31 +114,20 @@ def effective_reach(model: nn.Module, recon: dict, size: int = 256, seed: int = 
     positions, one per pooling phase class), through the full pipeline of the core."""
     g = np.random.default_rng(seed)
     base = (0.18 * g.gamma(2.0, 0.5, size=(size, size, 3))).astype(np.float32)
-    aux = torch.from_numpy(g.random((1, AUX, size, size), dtype=np.float32))
+    aux = np.moveaxis(g.random((1, AUX, size, size), dtype=np.float32)[0], 0, -1)
     worst = 0
-    for k, (cy, cx) in enumerate([(size // 2, size // 2), (size // 2 + 5, size // 2 + 11),
-                                  (size // 2 + 16, size // 2 - 7), (size // 2 - 3, size // 2 + 1)]):
+    for cy, cx in [(size // 2, size // 2), (size // 2 + 5, size // 2 + 11),
+                   (size // 2 + 16, size // 2 - 7), (size // 2 - 3, size // 2 + 1)]:
         outs = []
         for bump in (0.0, 1.0):
             img = base.copy()
             img[cy, cx] += bump * 0.18
-            outs.append(_denoise(model, recon, img, aux))
-        d = (outs[1] - outs[0]).abs().amax(dim=1)[0] / 0.18
-        ys, xs = torch.nonzero(d > EFFECT_TOL, as_tuple=True)
+            outs.append(denoise_image(model, recon, img, aux, 1.0))
+        d = np.abs(outs[1] - outs[0]).max(axis=-1) / 0.18
+        ys, xs = np.nonzero(d > EFFECT_TOL)
         if len(ys):
-            worst = max(worst, int(torch.maximum((ys - cy).abs(), (xs - cx).abs()).max()))
+            worst = max(worst, int(np.maximum(np.abs(ys - cy), np.abs(xs - cx)).max()))
     return worst
-
-
-def _denoise(model, recon, img: np.ndarray, aux: torch.Tensor) -> torch.Tensor:
-    from . import color
-    from .reconstruct import reconstruct
-
-    hsv, _ = color.encode(img, 1.0)
-    hsv = torch.from_numpy(np.moveaxis(hsv, -1, 0)[None].copy())
-    rgb = torch.from_numpy(np.moveaxis(color.sanitize_rgb(img), -1, 0)[None].astype(np.float32).copy())
-    filters = model.eval()(hsv[:, :2], hsv[:, 2:], aux)
-    return reconstruct(rgb, aux[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"])
 
 
 def effective_overlap(model: nn.Module, recon: dict) -> int:

@@ -6,8 +6,11 @@ module writes (temc_train.recon_vectors -> tests/data/recon_vectors.json) keep t
 within 1e-5. Non-finite logits: NaN -> 0, everything clamped to +-LOGIT_MAX, in both.
 """
 
+import numpy as np
 import torch
 import torch.nn.functional as F
+
+from . import color
 
 LINEAR_MAX = 65504.0
 LUMA = (0.2126, 0.7152, 0.0722)
@@ -102,3 +105,23 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
         out = out * d
     out = torch.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
     return out.clamp(0.0, 1.0 if ldr else LINEAR_MAX)
+
+
+@torch.no_grad()
+def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale: float) -> np.ndarray:
+    """A whole image as the core denoises it: `noisy` linear [H, W, 3], `aux` the network's
+    aux planes [H, W, 7] (color.aux_channels, moved last), `scale` the input scale; the
+    image is mirror-padded to the alignment (32) and the result cropped back. Returns
+    [H, W, 3] linear."""
+    hsv, _ = color.encode(noisy, scale)
+    h, w = noisy.shape[:2]
+    pad = ((0, (-h) % 32), (0, (-w) % 32), (0, 0))
+
+    def planes(x):
+        return torch.from_numpy(np.moveaxis(np.pad(x, pad, mode="reflect"), -1, 0)[None].copy())
+
+    hsv_t, aux_t = planes(hsv), planes(aux.astype(np.float32))
+    rgb = planes(color.sanitize_rgb(noisy).astype(np.float32))
+    filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
+    out = reconstruct(rgb, aux_t[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"])
+    return np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
