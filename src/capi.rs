@@ -677,7 +677,8 @@ pub unsafe extern "C" fn temcSetDeviceErrorFunction(
     })
 }
 
-/// Returns the first error not yet queried and clears it; `out_message` (may be NULL)
+/// Returns the first error not yet queried by the calling thread (errors are kept per
+/// thread, as in OIDN) and clears it; `out_message` (may be NULL)
 /// receives its text (NULL for no error), valid until the next query. A NULL device
 /// returns this thread's errors that had no device (device creation, NULL or released
 /// handles, physical device queries).

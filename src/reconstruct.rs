@@ -43,6 +43,9 @@ pub struct Params {
     pub eps: f32,
     /// LDR mode: the output is clamped to [0, 1] instead of [0, `LINEAR_MAX`].
     pub ldr: bool,
+    /// Each level also holds a luma and a chroma guide (`temc.guide`): tap t's logit gains
+    /// the range term -(g(p + t) - g(p))^2 / 2.
+    pub guide: bool,
 }
 
 /// How far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from the centre:
@@ -54,15 +57,16 @@ pub fn reach(levels: usize, kernel: usize) -> usize {
     (kernel / 2) * ((1usize << levels) - 1) + (1usize << (levels - 1)) - 1
 }
 
-/// The logit channels per level for a `kernel` x `kernel` kernel: two kernels, two blends.
-pub fn channels(kernel: usize) -> usize {
-    2 * kernel * kernel + 2
+/// The logit channels per level for a `kernel` x `kernel` kernel: two kernels, two blends,
+/// and with `guide` two guides.
+pub fn channels(kernel: usize, guide: bool) -> usize {
+    2 * kernel * kernel + if guide { 4 } else { 2 }
 }
 
 /// Applies the predicted filters to one H x W window; returns the [3, H, W] planar result.
 ///
 /// `rgb` and `albedo` are [3, H, W] planar (albedo is read only when demodulating);
-/// `filters[l]` is [2k^2 + 2, H / 2^l, W / 2^l] planar. Every output value is finite and in
+/// `filters[l]` is [`channels`(k, guide), H / 2^l, W / 2^l] planar. Every output value is finite and in
 /// [0, `LINEAR_MAX`] (LDR: [0, 1]), whatever the logits hold.
 pub fn reconstruct(
     p: &Params,
@@ -88,7 +92,7 @@ pub fn reconstruct(
             x = downsample(&x, 3, hl, wl);
             (hl, wl) = (hl / 2, wl / 2);
         }
-        outs.push(filter_level(&x, f, p.kernel, hl, wl, &mut scratch));
+        outs.push(filter_level(&x, f, p, hl, wl, &mut scratch));
     }
     let (mut cy, mut cc) = outs.pop().expect("levels >= 1");
     let k2 = p.kernel * p.kernel;
@@ -131,7 +135,7 @@ fn validate(
     }
     let hw = h
         .checked_mul(w)
-        .filter(|n| n.checked_mul(channels(p.kernel)).is_some());
+        .filter(|n| n.checked_mul(channels(p.kernel, p.guide)).is_some());
     let Some(hw) = hw else {
         return bad(format!("{w}x{h} is too large"));
     };
@@ -162,7 +166,7 @@ fn validate(
         ));
     }
     for (l, f) in filters.iter().enumerate() {
-        let want = channels(p.kernel) * (h >> l) * (w >> l);
+        let want = channels(p.kernel, p.guide) * (h >> l) * (w >> l);
         if f.len() != want {
             return bad(format!(
                 "filters[{l}] has {} values, expected {want}",
@@ -251,7 +255,7 @@ fn span(
 fn filter_level(
     x: &[f32],
     f: &[f32],
-    k: usize,
+    p: &Params,
     h: usize,
     w: usize,
     s: &mut Scratch,
@@ -259,9 +263,9 @@ fn filter_level(
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2. No FMA: the results are bit-identical to the baseline's.
-        return unsafe { filter_level_avx2(x, f, k, h, w, s) };
+        return unsafe { filter_level_avx2(x, f, p, h, w, s) };
     }
-    filter_level_any(x, f, k, h, w, s)
+    filter_level_any(x, f, p, h, w, s)
 }
 
 /// [`filter_level_any`] compiled for AVX2: 8 lanes instead of SSE2's 4 (about 2x faster).
@@ -270,12 +274,12 @@ fn filter_level(
 fn filter_level_avx2(
     x: &[f32],
     f: &[f32],
-    k: usize,
+    p: &Params,
     h: usize,
     w: usize,
     s: &mut Scratch,
 ) -> (Vec<f32>, Vec<f32>) {
-    filter_level_any(x, f, k, h, w, s)
+    filter_level_any(x, f, p, h, w, s)
 }
 
 /// The body of [`filter_level`], inlined into each instruction-set version.
@@ -283,13 +287,14 @@ fn filter_level_avx2(
 fn filter_level_any(
     x: &[f32],
     f: &[f32],
-    k: usize,
+    p: &Params,
     h: usize,
     w: usize,
     s: &mut Scratch,
 ) -> (Vec<f32>, Vec<f32>) {
     let n = h * w;
-    let k2 = k * k;
+    let k2 = p.kernel * p.kernel;
+    let guide = |c: usize| p.guide.then(|| &f[(2 * k2 + 2 + c) * n..][..n]);
     let (r, gb) = x.split_at(n);
     let (g, b) = gb.split_at(n);
     let luma: Vec<f32> = r
@@ -304,9 +309,9 @@ fn filter_level_any(
         for bx0 in (0..w).step_by(BLOCK) {
             let bx = (bx0, (bx0 + BLOCK).min(w));
             let at = y * w + bx0..y * w + bx.1;
-            s.weights_for(&f[..k2 * n], y, h, w, bx);
+            s.weights_for(&f[..k2 * n], guide(0), y, h, w, bx);
             s.apply(&luma, y, h, w, bx, &mut fy[at.clone()]);
-            s.weights_for(&f[k2 * n..2 * k2 * n], y, h, w, bx);
+            s.weights_for(&f[k2 * n..2 * k2 * n], guide(1), y, h, w, bx);
             for c in 0..3 {
                 let plane = &x[c * n..][..n];
                 s.apply(plane, y, h, w, bx, &mut fc[c * n..][at.clone()]);
@@ -318,9 +323,18 @@ fn filter_level_any(
 
 impl Scratch {
     /// The softmax weights (unnormalised, with 1 / sum in `norm`) of row `y`, block `bx`,
-    /// over the taps inside the image; `apply` reads only those.
+    /// over the taps inside the image; `apply` reads only those. With a `guide` plane each
+    /// logit gains the range term -(g(tap) - g(centre))^2 / 2 (guides cleaned like logits).
     #[inline(always)]
-    fn weights_for(&mut self, logits: &[f32], y: usize, h: usize, w: usize, bx: (usize, usize)) {
+    fn weights_for(
+        &mut self,
+        logits: &[f32],
+        guide: Option<&[f32]>,
+        y: usize,
+        h: usize,
+        w: usize,
+        bx: (usize, usize),
+    ) {
         let nb = bx.1 - bx.0;
         let plane = h * w;
         let max = &mut self.max[..nb];
@@ -332,9 +346,19 @@ impl Scratch {
             };
             let wt = &mut self.weights[t * BLOCK..][x0 - bx.0..x1 - bx.0];
             let src = &logits[t * plane + y * w..][x0..x1];
-            for ((o, &v), m) in wt.iter_mut().zip(src).zip(&mut max[x0 - bx.0..x1 - bx.0]) {
-                let v = clean_logit(v);
-                *o = v;
+            for (o, &v) in wt.iter_mut().zip(src) {
+                *o = clean_logit(v);
+            }
+            if let Some(g) = guide {
+                let row = (y as isize + dy) as usize * w;
+                let gt = &g[row + (x0 as isize + dx) as usize..][..x1 - x0];
+                let gc = &g[y * w + x0..][..x1 - x0];
+                for ((o, &a), &c) in wt.iter_mut().zip(gt).zip(gc) {
+                    let d = clean_logit(a) - clean_logit(c);
+                    *o -= 0.5 * d * d;
+                }
+            }
+            for (&v, m) in wt.iter().zip(&mut max[x0 - bx.0..x1 - bx.0]) {
                 *m = if v > *m { v } else { *m };
             }
         }
@@ -523,12 +547,13 @@ mod tests {
             demodulate: false,
             eps: 0.01,
             ldr: false,
+            guide: false,
         }
     }
 
     /// Random logits for every level (kernels and blends) with standard deviation `sd`.
     fn logits(rng: &mut Rng, p: &Params, h: usize, w: usize, sd: f32) -> Vec<Vec<f32>> {
-        let c = channels(p.kernel);
+        let c = channels(p.kernel, p.guide);
         (0..p.levels)
             .map(|l| rng.vec(c * (h >> l) * (w >> l), |r| r.normal(sd)))
             .collect()
@@ -559,7 +584,7 @@ mod tests {
         assert_eq!(reach(3, 5), 17);
         assert_eq!(reach(1, 5), 2);
         assert_eq!(reach(2, 3), 4);
-        assert_eq!(channels(5), 52);
+        assert_eq!((channels(5, false), channels(5, true)), (52, 54));
     }
 
     #[test]
@@ -581,7 +606,7 @@ mod tests {
         let (h, w, k) = (7, 9, 3);
         let mut rng = Rng(1);
         let rgb = rng.vec(3 * h * w, |r| r.uniform() + 0.1);
-        let f = vec![vec![0.0; channels(k) * h * w]];
+        let f = vec![vec![0.0; channels(k, false) * h * w]];
         let out = run(&params(1, k), &rgb, None, &f, h, w);
         for c in 0..3 {
             for y in 0..h {
@@ -709,7 +734,7 @@ mod tests {
             &params(1, k),
             &rgb,
             None,
-            &[vec![0.0; channels(k) * n]],
+            &[vec![0.0; channels(k, false) * n]],
             h,
             w,
         );
@@ -717,13 +742,13 @@ mod tests {
             &params(1, k),
             &rgb,
             None,
-            &[vec![f32::NAN; channels(k) * n]],
+            &[vec![f32::NAN; channels(k, false) * n]],
             h,
             w,
         );
         assert_eq!(box_out, nan_out);
         // +Inf on the centre tap, -Inf elsewhere: the identity.
-        let mut f = vec![f32::NEG_INFINITY; channels(k) * n];
+        let mut f = vec![f32::NEG_INFINITY; channels(k, false) * n];
         for kernel in 0..2 {
             f[(kernel * k * k + k * k / 2) * n..][..n].fill(f32::INFINITY);
         }
@@ -764,8 +789,8 @@ mod tests {
         let (h, w) = (8, 8);
         let n = h * w;
         let rgb = vec![0.5; 3 * n];
-        let f0 = vec![0.0; channels(3) * n];
-        let f1 = vec![0.0; channels(3) * n / 4];
+        let f0 = vec![0.0; channels(3, false) * n];
+        let f1 = vec![0.0; channels(3, false) * n / 4];
         let ok: [&[f32]; 2] = [&f0, &f1];
         let p = params(2, 3);
         assert!(reconstruct(&p, &rgb, None, &ok, h, w).is_ok());
@@ -807,10 +832,43 @@ mod tests {
         let (h, w, k) = (12, 300, 5);
         let mut rng = Rng(9);
         let x = rng.vec(3 * h * w, |r| r.uniform());
-        let f = rng.vec(channels(k) * h * w, |r| r.normal(3.0));
-        let mut s = Scratch::new(k, w);
-        let any = filter_level_any(&x, &f, k, h, w, &mut s);
-        assert_eq!(filter_level(&x, &f, k, h, w, &mut s), any);
+        for guide in [false, true] {
+            let p = Params {
+                guide,
+                ..params(1, k)
+            };
+            let f = rng.vec(channels(k, guide) * h * w, |r| r.normal(3.0));
+            let mut s = Scratch::new(k, w);
+            let any = filter_level_any(&x, &f, &p, h, w, &mut s);
+            assert_eq!(filter_level(&x, &f, &p, h, w, &mut s), any);
+        }
+    }
+
+    /// A lamp whose guide differs from its surroundings' by 6 (range term -18 per tap)
+    /// stays out of its neighbours under box logits, and they stay out of it, while the
+    /// same logits without the guide spread it.
+    #[test]
+    fn the_guide_fences_a_lamp_off() {
+        let (h, w, k) = (8, 8, 3);
+        let n = h * w;
+        let lamp = |i: usize| (2..4).contains(&(i / w)) && (2..4).contains(&(i % w));
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| if lamp(i % n) { 500.0 } else { 0.1 })
+            .collect();
+        let mut f = vec![0.0; channels(k, true) * n];
+        for g in [2 * k * k + 2, 2 * k * k + 3] {
+            (0..n).filter(|&i| lamp(i)).for_each(|i| f[g * n + i] = 6.0);
+        }
+        let p = Params {
+            guide: true,
+            ..params(1, k)
+        };
+        let out = run(&p, &rgb, None, &[f], h, w);
+        let unguided = run(&params(1, k), &rgb, None, &[vec![0.0; channels(k, false) * n]], h, w);
+        let beside = 4 * w + 4; // diagonal to the lamp's corner (3, 3)
+        assert!(close(lum(&out, n, beside), 0.1, 1e-3), "{}", lum(&out, n, beside));
+        assert!(lum(&unguided, n, beside) > 50.0);
+        assert!(close(lum(&out, n, 2 * w + 2), 500.0, 1e-3));
     }
 
     fn json_f32(v: &serde_json::Value) -> f32 {
@@ -853,6 +911,7 @@ mod tests {
                 demodulate: case["demodulate"].as_bool().unwrap(),
                 eps: case["eps"].as_f64().unwrap() as f32,
                 ldr: case["ldr"].as_bool().unwrap(),
+                guide: case["guide"].as_bool().unwrap_or(false),
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));

@@ -442,3 +442,29 @@ fn concurrent_handle_churn_never_confuses_handles() {
     temcReleaseFilter(shared);
     temcReleaseDevice(d);
 }
+
+/// A device's errors are kept per thread, as in OIDN: a thread sees the errors of its own
+/// calls and not another's, and each thread's message pointer stays its own.
+#[test]
+fn device_errors_are_per_thread() {
+    let d = device();
+    let addr = d as usize;
+    let f = unsafe { temcNewFilter(d, c("NOPE").as_ptr()) };
+    assert!(f.is_null());
+    let other = std::thread::spawn(move || {
+        let d = addr as TEMCDevice;
+        let before = error(d).0;
+        unsafe { temcSetDeviceInt(d, c("numThreads").as_ptr(), -3) };
+        let (code, msg) = error(d);
+        (before, code, msg)
+    })
+    .join()
+    .unwrap();
+    assert_eq!(other.0, TEMC_ERROR_NONE, "the other thread does not see this one's error");
+    assert_ne!(other.1, TEMC_ERROR_NONE, "{}", other.2);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_INVALID_ARGUMENT);
+    assert!(msg.contains("NOPE"), "{msg}");
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    temcReleaseDevice(d);
+}

@@ -96,6 +96,14 @@ enum Command {
         /// present). Layers left out are not read from the colour file.
         #[arg(long, value_enum, default_value = "full")]
         aux: AuxArg,
+        /// Make the colour from the colour file's spectral layer (temc-render's
+        /// `spectral.b00`.. channels) through the CIE 1931 observer, instead of its RGB
+        /// layer. Used without asking when a file has a spectral layer and no colour.
+        #[arg(long)]
+        spectral: bool,
+        /// The spectral layer's wavelength range in nm, MIN,MAX, split into equal bands.
+        #[arg(long, default_value = "380,780", value_parser = parse_range)]
+        spectral_range: (f32, f32),
     },
     /// Time the filter on a synthetic image: one warm-up run (which builds the plan), then
     /// `--repeat` timed runs, like OIDN's oidnBenchmark.
@@ -175,9 +183,12 @@ fn run(cli: Cli) -> temc::Result<()> {
             json,
             color_only,
             aux: aux_arg,
+            spectral,
+            spectral_range,
         } => {
             let t0 = Instant::now();
             let mut bufs = io::read(&color)?;
+            colour_from_spectral(&mut bufs, &color, spectral, spectral_range)?;
             let aux_arg = if color_only { AuxArg::None } else { aux_arg };
             if aux_arg != AuxArg::Full {
                 (bufs.normal, bufs.depth) = (None, None);
@@ -333,6 +344,39 @@ fn run(cli: Cli) -> temc::Result<()> {
             Ok(())
         }
     }
+}
+
+/// `MIN,MAX` in nm.
+fn parse_range(s: &str) -> Result<(f32, f32), String> {
+    let bad = || format!("{s:?}: expected MIN,MAX in nm, e.g. 380,780");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let (a, b) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+    Ok((a, b))
+}
+
+/// With `wanted` (or when the file has a spectral layer and no colour), replaces the colour
+/// by the spectral layer's linear sRGB over `range` split into equal bands.
+fn colour_from_spectral(
+    bufs: &mut Buffers,
+    path: &Path,
+    wanted: bool,
+    range: (f32, f32),
+) -> temc::Result<()> {
+    if !(wanted || bufs.color.is_none()) {
+        return Ok(());
+    }
+    let Some(values) = bufs.spectral.take() else {
+        if wanted {
+            return Err(temc::Error::InvalidArgument(format!(
+                "{}: --spectral: no spectral layer (spectral.b00, spectral.b01, ...)",
+                path.display()
+            )));
+        }
+        return Ok(());
+    };
+    let bands = temc::color::SpectralBands::uniform(bufs.spectral_bands, range.0, range.1)?;
+    bufs.color = Some(bands.image_to_linear_srgb(&values));
+    Ok(())
 }
 
 fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {

@@ -493,10 +493,7 @@ impl FilterState {
                 )));
             }
         }
-        let edges: Vec<f32> = (0..=n)
-            .map(|i| lo + (hi - lo) * i as f32 / n as f32)
-            .collect();
-        Ok(SpectralBands::new(&edges)?)
+        Ok(SpectralBands::uniform(n as usize, lo, hi)?)
     }
 
     /// Runs the committed filter. On error the output is untouched.

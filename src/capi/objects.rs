@@ -1,9 +1,11 @@
 //! The objects behind C handles, error recording, and the one guard every entry point runs in.
 
+use std::collections::HashMap;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::ThreadId;
 
 use super::filter_state::FilterState;
 use super::registry::Registry;
@@ -57,9 +59,12 @@ impl From<Error> for Failure {
 pub(crate) type Outcome<T> = Result<T, Failure>;
 
 struct ErrorState {
-    first: Option<(TEMCError, CString)>,
-    /// The message last handed out by temcGetDeviceError; valid until the next query.
-    returned: CString,
+    /// Per thread, as OIDN keeps a device's errors: a thread sees the errors of its own
+    /// calls, so two threads sharing a device do not take each other's.
+    first: HashMap<ThreadId, (TEMCError, CString)>,
+    /// Per thread, the message last handed out by temcGetDeviceError; valid until that
+    /// thread's next query.
+    returned: HashMap<ThreadId, CString>,
     callback: TEMCErrorFunction,
     user_ptr: usize,
 }
@@ -76,8 +81,8 @@ impl DeviceObj {
         Self {
             device: Device::new(),
             errors: Mutex::new(ErrorState {
-                first: None,
-                returned: CString::default(),
+                first: HashMap::new(),
+                returned: HashMap::new(),
                 callback: None,
                 user_ptr: 0,
             }),
@@ -226,9 +231,9 @@ pub(crate) fn record(device: Option<&DeviceObj>, code: TEMCError, message: Strin
         Some(d) => {
             let callback = {
                 let mut st = d.errors();
-                if st.first.is_none() {
-                    st.first = Some((code, message.clone()));
-                }
+                st.first
+                    .entry(std::thread::current().id())
+                    .or_insert_with(|| (code, message.clone()));
                 st.callback.map(|cb| (cb, st.user_ptr))
             };
             if let Some((cb, user)) = callback {
@@ -263,7 +268,9 @@ pub(crate) fn take_error(device: Option<&DeviceObj>) -> (TEMCError, *const c_cha
         Some(d) => {
             let mut st = d.errors();
             let st = &mut *st;
-            take(&mut st.first, &mut st.returned)
+            let me = std::thread::current().id();
+            let mut slot = st.first.remove(&me);
+            take(&mut slot, st.returned.entry(me).or_default())
         }
         None => GLOBAL_ERROR.with(|g| {
             let mut g = g.borrow_mut();

@@ -119,6 +119,30 @@ impl SpectralBands {
         })
     }
 
+    /// `bands` equal bands over `min_nm..max_nm`: the layout of temc-render's `spectral`
+    /// EXR layer (16 over 380..780 nm) and of the C API's "spectral" image.
+    pub fn uniform(bands: usize, min_nm: f32, max_nm: f32) -> Result<Self, Error> {
+        if bands == 0 || !(max_nm > min_nm) {
+            return Err(Error::InvalidArgument(format!(
+                "spectral bands: need at least one band over a range with max > min, got \
+                 {bands} over {min_nm}..{max_nm} nm"
+            )));
+        }
+        let edges: Vec<f32> = (0..=bands)
+            .map(|i| min_nm + (max_nm - min_nm) * i as f32 / bands as f32)
+            .collect();
+        Self::new(&edges)
+    }
+
+    /// Linear sRGB, interleaved, of an image whose pixels hold [`Self::len`] band values
+    /// each, interleaved (a trailing partial pixel is ignored).
+    pub fn image_to_linear_srgb(&self, values: &[f32]) -> Vec<f32> {
+        values
+            .chunks_exact(self.len())
+            .flat_map(|px| self.to_linear_srgb(px))
+            .collect()
+    }
+
     /// Number of bands.
     pub fn len(&self) -> usize {
         self.weights.len()

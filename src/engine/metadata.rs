@@ -48,6 +48,9 @@ pub struct ModelInfo {
     pub demodulate: bool,
     /// The demodulation's epsilon (`temc.demod_eps`).
     pub demod_eps: f32,
+    /// Whether each level holds two guide channels, the range term's (`temc.guide`;
+    /// optional, absent means no).
+    pub guide: bool,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -116,6 +119,15 @@ impl ModelInfo {
             }
         };
         let demod_eps: f32 = num("temc.demod_eps", get("temc.demod_eps")?)?;
+        let guide = match raw.get("temc.guide").map(String::as_str) {
+            None | Some("0") => false,
+            Some("1") => true,
+            Some(v) => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.guide` = {v:?} must be 0 or 1"
+                )))
+            }
+        };
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -168,6 +180,7 @@ impl ModelInfo {
             kernel,
             demodulate,
             demod_eps,
+            guide,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
@@ -182,9 +195,10 @@ impl ModelInfo {
         self.dataset == "none"
     }
 
-    /// Channels of one level's filter output: luma taps, chroma taps, two blend logits.
+    /// Channels of one level's filter output: luma taps, chroma taps, two blend logits
+    /// and, with `guide`, two guides.
     pub fn filter_channels(&self) -> usize {
-        2 * self.kernel * self.kernel + 2
+        crate::reconstruct::channels(self.kernel, self.guide)
     }
 }
 

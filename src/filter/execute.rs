@@ -353,6 +353,7 @@ fn denoise_tile(
         demodulate: info.demodulate,
         eps: info.demod_eps,
         ldr: !hdr,
+        guide: info.guide,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
     let albedo = info.demodulate.then_some(p.albedo.as_slice());

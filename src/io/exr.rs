@@ -10,6 +10,7 @@
 //! | albedo | `albedo`, `Denoising Albedo` | R G B |
 //! | normal | `normal`, `Denoising Normal`, `Normal` | X Y Z or R G B |
 //! | depth | `depth`, `Depth`, `Z` | Z, V, Y or R; a file with a single channel |
+//! | spectral | `spectral` | `b00`, `b01`, ... (consecutive from `b00`; band values) |
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -147,7 +148,17 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
         albedo: find3(ALBEDO, rgb),
         normal: find3(NORMAL, xyz),
         depth: None,
+        spectral: None,
+        spectral_bands: 0,
     };
+    let band = |b: usize| channels.get(&("spectral".to_string(), format!("b{b:02}")));
+    let bands = (0..).take_while(|&b| band(b).is_some()).count();
+    if bands > 0 {
+        let planes: Vec<&Vec<f32>> = (0..bands).filter_map(band).collect();
+        let px = width * height;
+        out.spectral = Some((0..px).flat_map(|i| planes.iter().map(move |p| p[i])).collect());
+        out.spectral_bands = bands;
+    }
     out.depth = DEPTH.iter().find_map(|pass| {
         ["Z", "V", "Y", "R"]
             .iter()
@@ -156,9 +167,14 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
     if out.depth.is_none() && channels.len() == 1 && out.color.is_none() {
         out.depth = channels.into_values().next();
     }
-    if out.color.is_none() && out.depth.is_none() && out.albedo.is_none() && out.normal.is_none() {
+    if out.color.is_none()
+        && out.depth.is_none()
+        && out.albedo.is_none()
+        && out.normal.is_none()
+        && out.spectral.is_none()
+    {
         return Err(TemcError::InvalidArgument(format!(
-            "{name}: no colour, albedo, normal or depth channels recognised"
+            "{name}: no colour, albedo, normal, depth or spectral channels recognised"
         )));
     }
     Ok(out)

@@ -26,6 +26,11 @@ pub struct Buffers {
     pub normal: Option<Vec<f32>>,
     /// Depth, one channel.
     pub depth: Option<Vec<f32>>,
+    /// Spectral radiance in bands (temc-render's `spectral` layer), `spectral_bands` values
+    /// per pixel, interleaved.
+    pub spectral: Option<Vec<f32>>,
+    /// Bands per pixel of `spectral` (0 without it).
+    pub spectral_bands: usize,
 }
 
 fn is_exr(path: &Path) -> bool {

@@ -81,6 +81,8 @@ class Scene:
         d = os.path.join(root, record["dir"])
         cache = os.path.join(d, "arrays.npz")
         self.spp = [int(s) for s, _ in record["noisy"]]
+        self.noisy_paths = [os.path.join(d, f) for _, f in record["noisy"]]
+        self.reference_path = os.path.join(d, record["reference"])
         if not os.path.exists(cache):
             layers = [read_exr(os.path.join(d, f)) for _, f in record["noisy"]]
             ref = read_exr(os.path.join(d, record["reference"]))
@@ -102,6 +104,21 @@ class Scene:
         # (as the core does before tiling).
         self.scale = [auto_input_scale(c) for c in self.a["color"]]
         self.depth_scale = [color.depth_scale(d) for d in self.a["depth"]]
+        # Noise2Noise targets: the reference render's prefixes (independent of the noisy
+        # inputs' seed), read on first use.
+        self._prefixes = {int(s): os.path.join(d, f) for s, f in record.get("reference_prefixes", [])}
+
+    def noisy_reference(self, spp: int) -> np.ndarray:
+        """The reference render's first `spp` samples (a Noise2Noise target)."""
+        key = f"reference_spp{spp}"
+        if key not in self.a:
+            if spp not in self._prefixes:
+                raise KeyError(f"{self.name}: no {spp}-spp reference prefix")
+            self.a[key] = read_exr(self._prefixes[spp])["color"]
+        return self.a[key]
+
+    def has_reference_prefix(self, spp: int) -> bool:
+        return spp in self._prefixes
 
     @property
     def shape(self):
@@ -164,10 +181,11 @@ def _transform_normal(n: np.ndarray, flip: bool, k: int) -> np.ndarray:
 
 def make_sample(scene: Scene, rng: np.random.Generator, crop: int = CROP, spp_index=None,
                 augment: bool = True, aux_mode: str = "random", p_color_only: float = 0.2,
-                p_albedo_only: float = 0.2, origin=None):
+                p_albedo_only: float = 0.2, origin=None, target_spp=None):
     """(chroma [2,c,c], luma [1,c,c], aux [7,c,c], noisy [3,c,c], albedo [3,c,c],
     reference [3,c,c]) float32 for one crop; noisy and reference are linear, times the
-    exposure."""
+    exposure. With `target_spp` the "reference" is the reference render's prefix at that
+    spp instead (Noise2Noise)."""
     h, w = scene.shape
     c = min(crop, h, w)
     s = int(rng.integers(len(scene.spp))) if spp_index is None else spp_index
@@ -177,7 +195,7 @@ def make_sample(scene: Scene, rng: np.random.Generator, crop: int = CROP, spp_in
         y0, x0 = origin
     sl = (slice(y0, y0 + c), slice(x0, x0 + c))
     noisy = scene.a["color"][s][sl]
-    ref = scene.a["reference"][sl]
+    ref = (scene.a["reference"] if target_spp is None else scene.noisy_reference(target_spp))[sl]
     alb = scene.a["albedo"][s][sl]
     nrm = scene.a["normal"][s][sl]
     dep = color.depth(scene.a["depth"][s][sl], scene.depth_scale[s])

@@ -43,7 +43,7 @@ def recon_of(model) -> dict:
     """The reconstruction settings a model was built for (demodulation defaults off)."""
     return {"levels": model.levels, "kernel": model.kernel, "split": model.split,
             "demodulate": bool(getattr(model, "demodulate", False)),
-            "eps": float(getattr(model, "eps", 0.01))}
+            "eps": float(getattr(model, "eps", 0.01)), "guide": bool(getattr(model, "guide", False))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -65,6 +65,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.split": recon["split"],
         "temc.demodulate": "1" if recon["demodulate"] else "0",
         "temc.demod_eps": repr(float(recon["eps"])),
+        "temc.guide": "1" if recon.get("guide") else "0",
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",
@@ -221,7 +222,8 @@ def load_checkpoint(path: str, arch=None, width=None):
         raise ValueError(f"{path}: a bare state_dict needs --arch and --width")
     recon = recon or {"levels": LEVELS, "kernel": KERNEL, "split": "both",
                       "demodulate": False, "eps": 0.01}
-    model = build(arch, float(width), recon["levels"], recon["kernel"], recon["split"])
+    model = build(arch, float(width), recon["levels"], recon["kernel"], recon["split"],
+                  recon.get("guide", False))
     model.load_state_dict(state)
     model.demodulate, model.eps = recon["demodulate"], recon["eps"]
     return model, arch, float(width), info

@@ -11,8 +11,9 @@ Computed per channel on [0,1] images, then averaged: temc takes it on the PQ R'G
 reconstructed linear output (`training_loss`).
 """
 
+import functools
+
 import torch
-import torch.nn.functional as F
 
 from . import color
 
@@ -30,14 +31,28 @@ def _kernels(device, dtype) -> torch.Tensor:
     return g / g.sum(dim=1, keepdim=True)
 
 
-def _blur(x: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
-    """x [B, 1, H, W] blurred by every window of k [S, K]: [B, S, H, W]. Separable (rows,
-    then columns): 2K instead of K^2 multiplies per pixel. Replicate padding keeps the
-    borders of small crops from reading as dark edges."""
-    s, n = k.shape
-    x = F.pad(x, (RADIUS,) * 4, mode="replicate")
-    x = F.conv2d(x, k.view(s, 1, 1, n))
-    return F.conv2d(x, k.view(s, 1, n, 1), groups=s)
+@functools.lru_cache(maxsize=16)
+def _blur_matrix(n: int, device, dtype) -> torch.Tensor:
+    """[S, n, n]: row i holds output i's taps of each window over the n inputs, with the
+    replicate padding folded in (a tap past the border reads the border pixel)."""
+    k = _kernels(device, dtype)
+    s, taps = k.shape
+    idx = (torch.arange(n, device=device)[:, None] + torch.arange(taps, device=device)[None]
+           - RADIUS).clamp(0, n - 1)
+    m = torch.zeros(s, n, n, device=device, dtype=dtype)
+    m.scatter_add_(2, idx[None].expand(s, n, taps), k[:, None, :].expand(s, n, taps).contiguous())
+    return m
+
+
+def _blur(x: torch.Tensor, which: slice = slice(None)) -> torch.Tensor:
+    """x [B, 1, H, W] blurred by the windows `which` of SIGMAS: [B, S, H, W]. Separable, as two matrix products per window (rows, then columns):
+    exactly the 1-D convolutions with replicate padding (which keeps the borders of small
+    crops from reading as dark edges), 4x faster on a CPU than conv2d with these shapes,
+    where this loss took 60 % of a training step."""
+    h, w = x.shape[-2:]
+    mh = _blur_matrix(h, x.device, x.dtype)[which]
+    mw = _blur_matrix(w, x.device, x.dtype)[which]
+    return mh @ (x @ mw.transpose(1, 2))
 
 
 def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> torch.Tensor:
@@ -48,9 +63,8 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     b = n * c  # per channel: every channel is its own grey image
     x = pred.reshape(b, 1, h, w)
     y = target.reshape(b, 1, h, w)
-    k = _kernels(pred.device, pred.dtype)
     # One blur call for the five local moments.
-    m = _blur(torch.cat([x, y, x * x, y * y, x * y]), k).split(b)
+    m = _blur(torch.cat([x, y, x * x, y * y, x * y])).split(b)
     mx, my = m[0], m[1]
     sxx = m[2] - mx * mx
     syy = m[3] - my * my
@@ -58,7 +72,7 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     cs = (2 * sxy + C2) / (sxx + syy + C2)
     lum = (2 * mx[:, -1] * my[:, -1] + C1) / (mx[:, -1] ** 2 + my[:, -1] ** 2 + C1)
     ms_ssim = lum * cs.prod(dim=1)
-    l1 = _blur((x - y).abs(), k[-1:])[:, 0]  # G_sigmaM-weighted L1
+    l1 = _blur((x - y).abs(), slice(-1, None))[:, 0]  # G_sigmaM-weighted L1
     return (alpha * (1 - ms_ssim) + (1 - alpha) * l1).mean()
 
 
@@ -79,6 +93,18 @@ def relative_l1(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     square. A filter that leaks a lamp into the dark ceiling beside it costs little on PQ
     (a few pixels) and a lot here."""
     return ((pred - target).abs() / (target.abs() + REL_EPS)).mean()
+
+
+N2N_EPS = 0.01
+
+
+def noise2noise_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Lehtinen et al. 2018's HDR loss for noisy targets: (x - t)^2 / (sg(x) + 0.01)^2 on
+    linear values. Squared error is minimised by the target's mean, so a zero-mean noisy
+    target trains towards the clean image; the denominator (no gradient through it) makes
+    it relative, as RelMSE is. A PQ loss is not: its minimiser under noise is biased."""
+    d = pred.detach().abs() + N2N_EPS
+    return (((pred - target) / d) ** 2).mean()
 
 
 def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA,

@@ -42,27 +42,33 @@ def conv3(cin: int, cout: int) -> nn.Conv2d:
     return nn.Conv2d(cin, cout, 3, padding=1)
 
 
-def filter_channels(kernel: int = KERNEL) -> int:
-    """Channels of one level's filter output: luma taps, chroma taps, two blend logits."""
-    return 2 * kernel * kernel + 2
+def filter_channels(kernel: int = KERNEL, guide: bool = False) -> int:
+    """Channels of one level's filter output: luma taps, chroma taps, two blend logits and,
+    with `guide`, a luma and a chroma guide (reconstruct.py: the range term)."""
+    return 2 * kernel * kernel + (4 if guide else 2)
 
 
 class FilterHeads(nn.Module):
     """Zero-initialised 1x1 convs from decoder features (finest level first) to filter
     logits, one per level. `part` says which half of a level's channels this network
     predicts: "both", "luma" or "chroma" (TEMC-1's two branches), or "one" (a single kernel
-    and blend for luma and chroma, expanded to the full layout)."""
+    and blend for luma and chroma, expanded to the full layout). With `guide` each part also
+    predicts its guide channel(s), last; those start small and random rather than zero: the
+    range term's gradient vanishes where all guides are equal."""
 
-    def __init__(self, widths: list, levels: int, kernel: int, part: str = "both"):
+    def __init__(self, widths: list, levels: int, kernel: int, part: str = "both",
+                 guide: bool = False):
         super().__init__()
         self.n = kernel * kernel
-        self.part = part
-        cout = filter_channels(kernel) if part == "both" else self.n + 1
+        self.part, self.guide = part, guide
+        self.cout = filter_channels(kernel, guide) if part == "both" else self.n + 1 + guide
         self.convs = nn.ModuleList()
         for cin in widths[:levels]:
-            c = nn.Conv2d(cin, cout, 1)
+            c = nn.Conv2d(cin, self.cout, 1)
             nn.init.zeros_(c.weight)
             nn.init.zeros_(c.bias)
+            if guide:
+                init_guide_rows(c, self.cout - (2 if part == "both" else 1))
             c.is_head = True  # found by export.randomize_untrained
             self.convs.append(c)
 
@@ -70,15 +76,29 @@ class FilterHeads(nn.Module):
         outs = [conv(f) for conv, f in zip(self.convs, feats)]
         if self.part == "one":
             n = self.n
-            outs = [torch.cat([o[:, :n], o[:, :n], o[:, n:], o[:, n:]], dim=1) for o in outs]
+            outs = [torch.cat([o[:, :n], o[:, :n], o[:, n:n + 1], o[:, n:n + 1], o[:, n + 1:],
+                               o[:, n + 1:]], dim=1) for o in outs]
         return outs
 
 
+GUIDE_INIT_STD = 1e-2
+
+
+def init_guide_rows(conv: nn.Conv2d, first: int) -> None:
+    """Small random weights for the guide outputs `first`.. of a head conv (see FilterHeads)."""
+    with torch.no_grad():
+        g = torch.Generator().manual_seed(1234 + first)
+        w = conv.weight[first:]
+        w.copy_(GUIDE_INIT_STD * torch.randn(w.shape, generator=g))
+        conv.bias[first:].zero_()
+
+
 def join_luma_chroma(luma: list, chroma: list, kernel: int) -> list:
-    """TEMC-1: the luma branch's (taps, blend) and the chroma branch's, in the layout of
-    filter_channels."""
+    """TEMC-1: the luma branch's (taps, blend[, guide]) and the chroma branch's, in the
+    layout of filter_channels."""
     n = kernel * kernel
-    return [torch.cat([l[:, :n], c[:, :n], l[:, n:], c[:, n:]], dim=1)
+    return [torch.cat([l[:, :n], c[:, :n], l[:, n:n + 1], c[:, n:n + 1], l[:, n + 1:],
+                       c[:, n + 1:]], dim=1)
             for l, c in zip(luma, chroma)]
 
 
@@ -138,7 +158,8 @@ class Decoder(nn.Module):
     """DEMC's decoder over any number of encoders: at each level the previous decoder output
     and every encoder's skip are concatenated and fused by a linear 1x1 conv."""
 
-    def __init__(self, skip_widths: list, n_encoders: int, levels: int, kernel: int, part: str):
+    def __init__(self, skip_widths: list, n_encoders: int, levels: int, kernel: int, part: str,
+                 guide: bool = False):
         super().__init__()
         w = skip_widths  # per level, the same for every encoder
         self.up1 = up(w[4], w[4])
@@ -153,7 +174,7 @@ class Decoder(nn.Module):
             if u is not None:
                 self.ups.append(up(c, u))
         self.levels = levels
-        self.heads = FilterHeads(w, levels, kernel, part)
+        self.heads = FilterHeads(w, levels, kernel, part, guide)
 
     def forward(self, z, skips_per_encoder: list) -> list:
         x = self.up1(z)
@@ -176,14 +197,15 @@ class DEMCNet(nn.Module):
     """One DEMC: HDR encoder on x, FFS on aux feeding a feature encoder whose latent is
     discarded (as in DEMC's code), latent conv, decoder with both encoders' skips."""
 
-    def __init__(self, cin: int, width: float, levels: int, kernel: int, part: str, aux: int = AUX):
+    def __init__(self, cin: int, width: float, levels: int, kernel: int, part: str, aux: int = AUX,
+                 guide: bool = False):
         super().__init__()
         self.ffs = FFS(aux, width)
         self.hdr = VGGEncoder(cin, width)
         self.feat = VGGEncoder(1, width)
         w = self.hdr.widths
         self.latent = latent_block(w[4], w[4])
-        self.decoder = Decoder(w, 2, levels, kernel, part)
+        self.decoder = Decoder(w, 2, levels, kernel, part, guide)
 
     def forward(self, x, aux):
         hs, z = self.hdr(x)
@@ -195,7 +217,8 @@ class AENet(nn.Module):
     """The TEMC autoencoder (Chaitanya et al. 2017 without recurrence). Skips are taken
     before pooling; up5 uses a1 (our choice, recorded in the architecture note)."""
 
-    def __init__(self, cin: int, width: float, levels: int, kernel: int, part: str):
+    def __init__(self, cin: int, width: float, levels: int, kernel: int, part: str,
+                 guide: bool = False):
         super().__init__()
         d = [scaled(c, width) for c in AE_DOWN]
         u = [(scaled(a, width), scaled(b, width)) for a, b in AE_UP]
@@ -214,7 +237,7 @@ class AENet(nn.Module):
             prev = b
         out_widths = [b for _, b in reversed(u)]  # finest level first
         self.levels = levels
-        self.heads = FilterHeads(out_widths, levels, kernel, part)
+        self.heads = FilterHeads(out_widths, levels, kernel, part, guide)
 
     def forward(self, x) -> list:
         x = self.c0(x)
@@ -233,21 +256,21 @@ class AENet(nn.Module):
 class Denoiser(nn.Module):
     """What every architecture shares: the reconstruction it predicts filters for."""
 
-    def __init__(self, levels: int, kernel: int, split: str):
+    def __init__(self, levels: int, kernel: int, split: str, guide: bool = False):
         super().__init__()
         if split not in SPLITS:
             raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
         if kernel % 2 != 1 or not 1 <= levels <= 5:
             raise ValueError(f"need an odd kernel and 1..5 levels, got {kernel}, {levels}")
-        self.levels, self.kernel, self.split = levels, kernel, split
+        self.levels, self.kernel, self.split, self.guide = levels, kernel, split, guide
 
 
 class AE(Denoiser):
     """Autoencoder baseline: chroma || luma || aux (10 channels) -> filters."""
 
-    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both"):
-        super().__init__(levels, kernel, split)
-        self.net = AENet(CHROMA + LUMA + AUX, width, levels, kernel, split)
+    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both", guide=False):
+        super().__init__(levels, kernel, split, guide)
+        self.net = AENet(CHROMA + LUMA + AUX, width, levels, kernel, split, guide)
 
     def forward(self, chroma, luma, aux):
         return self.net(torch.cat([chroma, luma, aux], dim=1))
@@ -256,9 +279,9 @@ class AE(Denoiser):
 class DEMC(Denoiser):
     """DEMC baseline on HSV = chroma || luma, with aux through its FFS."""
 
-    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both"):
-        super().__init__(levels, kernel, split)
-        self.net = DEMCNet(CHROMA + LUMA, width, levels, kernel, split)
+    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both", guide=False):
+        super().__init__(levels, kernel, split, guide)
+        self.net = DEMCNet(CHROMA + LUMA, width, levels, kernel, split, guide=guide)
 
     def forward(self, chroma, luma, aux):
         return self.net(torch.cat([chroma, luma], dim=1), aux)
@@ -269,10 +292,10 @@ class TEMC1(Denoiser):
     predicts the luma filters. Nothing is shared between the two. (split "one" has no
     meaning here: the two branches are the split.)"""
 
-    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both"):
-        super().__init__(levels, kernel, split)
-        self.chroma = DEMCNet(CHROMA, width, levels, kernel, "chroma")
-        self.luma = AENet(LUMA, width, levels, kernel, "luma")
+    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both", guide=False):
+        super().__init__(levels, kernel, split, guide)
+        self.chroma = DEMCNet(CHROMA, width, levels, kernel, "chroma", guide=guide)
+        self.luma = AENet(LUMA, width, levels, kernel, "luma", guide)
 
     def forward(self, chroma, luma, aux):
         return join_luma_chroma(self.luma(luma), self.chroma(chroma, aux), self.kernel)
@@ -282,15 +305,15 @@ class TEMC2(Denoiser):
     """TEMC-2: chroma, luma and fused-aux VGG encoders; the chroma and luma latents are
     concatenated and stabilised by two convs; one decoder takes every encoder's skips."""
 
-    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both"):
-        super().__init__(levels, kernel, split)
+    def __init__(self, width=1.0, levels=LEVELS, kernel=KERNEL, split="both", guide=False):
+        super().__init__(levels, kernel, split, guide)
         self.ffs = FFS(AUX, width)
         self.enc_c = VGGEncoder(CHROMA, width)
         self.enc_l = VGGEncoder(LUMA, width)
         self.enc_a = VGGEncoder(1, width)
         w = self.enc_c.widths
         self.stab = nn.Sequential(latent_block(2 * w[4], w[4]), latent_block(w[4], w[4]))
-        self.decoder = Decoder(w, 3, levels, kernel, split)
+        self.decoder = Decoder(w, 3, levels, kernel, split, guide)
 
     def forward(self, chroma, luma, aux):
         cs, zc = self.enc_c(chroma)
@@ -301,14 +324,14 @@ class TEMC2(Denoiser):
 
 
 def build(arch: str, width: float = 1.0, levels: int = LEVELS, kernel: int = KERNEL,
-          split: str = "both") -> nn.Module:
+          split: str = "both", guide: bool = False) -> nn.Module:
     """The model named `arch` (one of ARCHS) at `width`, predicting filters for `levels`
     levels of `kernel` x `kernel` taps; it returns a list of `levels` tensors
-    [N, filter_channels(kernel), H / 2^l, W / 2^l]."""
+    [N, filter_channels(kernel, guide), H / 2^l, W / 2^l]."""
     classes = {"ae": AE, "demc": DEMC, "temc1": TEMC1, "temc2": TEMC2}
     if arch not in classes:
         raise ValueError(f"unknown architecture {arch!r}; expected one of {ARCHS}")
-    return classes[arch](width, levels, kernel, split)
+    return classes[arch](width, levels, kernel, split, guide)
 
 
 def count_params(model: nn.Module) -> tuple:

@@ -68,10 +68,17 @@ def summary(rows):
     return rel, de, worst
 
 
-def describe(recon):
-    return (f"{recon['levels']} level(s) of {recon['kernel']}x{recon['kernel']}, "
+def describe(recon, state=None):
+    """The design and (where the checkpoint records it) the training recipe of a run."""
+    text = (f"{recon['levels']} level(s) of {recon['kernel']}x{recon['kernel']}, "
             f"{'luma + chroma filters' if recon['split'] == 'both' else 'one filter'}, "
-            f"demodulation {'on' if recon['demodulate'] else 'off'}")
+            f"demodulation {'on' if recon['demodulate'] else 'off'}"
+            + (", guides" if recon.get("guide") else ""))
+    hp = (state or {}).get("hparams")
+    if hp:
+        target = f"{hp['target_spp']}-spp reference prefix" if hp.get("target_spp") else "clean reference"
+        text += f"; {hp.get('loss', 'mix')} loss on the {target}"
+    return text
 
 
 def main(argv=None):
@@ -80,6 +87,11 @@ def main(argv=None):
     ap.add_argument("--runs", nargs="+", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--title", default="Reconstruction design probes (issue 14)")
+    ap.add_argument("--regenerate", default="`scripts/design-probes` (trains every design below on "
+                    "the same CPU budget,\nthen runs `python -m temc_train.probe`)",
+                    help="the command the page names for regenerating it")
+    ap.add_argument("--note", default="", help="a paragraph placed after the table")
     a = ap.parse_args(argv)
     torch.set_num_threads(a.threads)
     scenes = data.load_split(a.data, "val") + data.load_split(a.data, "test")
@@ -92,16 +104,15 @@ def main(argv=None):
         model, arch, width, info = load_checkpoint(ck)
         recon = recon_of(model)
         st = torch.load(ck, map_location="cpu", weights_only=False)["state"]
-        table.append((os.path.basename(run), describe(recon), st["train_s"], st["step"],
+        table.append((os.path.basename(run), describe(recon, st), st["train_s"], st["step"],
                       evaluate_run(model, recon, scenes)))
         print(f"evaluated {run}", flush=True)
     oidn = evaluate_oidn(scenes)
     spps = sorted({spp for *_, res in table for spp in res})
     lines = [
-        "# Reconstruction design probes (issue 14)",
+        f"# {a.title}",
         "",
-        "Regenerate: `scripts/design-probes` (trains every design below on the same CPU budget,",
-        "then runs `python -m temc_train.probe`). TEMC-2, one thread per run; evaluated on",
+        f"Regenerate: {a.regenerate}. One thread per run; evaluated on",
         f"{len(scenes)} whole images of the validation and test splits of "
         f"`{os.path.basename(os.path.normpath(a.data))}`, full aux, through the network and",
         "the reconstruction the core runs (`reconstruct.py`, proven equal to src/reconstruct.rs).",
@@ -124,6 +135,8 @@ def main(argv=None):
             rel, de, worst = summary(oidn[spp])
             cells.append(f"{rel:.4f} | {de:.2f} | {100 * worst:.1f} %")
         lines.append("| OIDN 2.5 high | same images | | | " + " | ".join(cells) + " |")
+    if a.note:
+        lines += ["", a.note]
     with open(a.out, "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))

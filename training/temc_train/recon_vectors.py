@@ -20,16 +20,16 @@ TOLERANCE = 1e-5
 SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
-def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0):
+def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
     filters = [
-        np.round(sd * rng.standard_normal((channels(kernel), h >> l, w >> l)), 2)
+        np.round(sd * rng.standard_normal((channels(kernel, guide), h >> l, w >> l)), 2)
         for l in range(levels)
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
-                eps=0.01, ldr=ldr, rgb=rgb, albedo=albedo if demodulate else None,
+                eps=0.01, ldr=ldr, guide=guide, rgb=rgb, albedo=albedo if demodulate else None,
                 filters=filters)
 
 
@@ -65,6 +65,18 @@ def cases():
     c["filters"][0][9:18, 4:5, 4:5] = -LOGIT_MAX
     c["filters"][0][13, 4, 4] = LOGIT_MAX
     out.append(c)
+    out.append(_case("guide_8x8_L1_k5", rng, 8, 8, 1, 5, guide=True))
+    out.append(_case("guide_demod_16x8_L3_k3", rng, 16, 8, 3, 3, demodulate=True, guide=True))
+    # A lamp the guide fences off: its pixels' guides are 6 apart from the rest.
+    c = _case("guide_lamp_8x8_L2_k3", rng, 8, 8, 2, 3, sd=0.5, guide=True)
+    c["rgb"][:, 2:4, 2:4] = 500.0
+    c["filters"][0][-2:] = 0.0
+    c["filters"][0][-2:, 2:4, 2:4] = 6.0
+    out.append(c)
+    c = _case("guide_extreme_8x8_L1_k3", rng, 8, 8, 1, 3, guide=True)
+    pick = rng.random(c["filters"][0][-2:].shape) < 0.4
+    c["filters"][0][-2:][pick] = rng.choice(SPECIALS, size=int(pick.sum()))
+    out.append(c)
     return out
 
 
@@ -73,7 +85,7 @@ def run(case, dtype):
     t = lambda a: torch.from_numpy(np.asarray(a, np.float32).astype(np.float64)).to(dtype)[None]
     albedo = None if case["albedo"] is None else t(case["albedo"])
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
-                      case["demodulate"], case["eps"], case["ldr"])
+                      case["demodulate"], case["eps"], case["ldr"], case["guide"])
     return out[0].double().numpy()
 
 

@@ -18,9 +18,10 @@ LOGIT_MAX = 1e4
 MIN_CHROMA_LUMA = 1e-30
 
 
-def channels(kernel):
-    """Logit channels per level: a luma and a chroma kernel, then two blend logits."""
-    return 2 * kernel * kernel + 2
+def channels(kernel, guide=False):
+    """Logit channels per level: a luma and a chroma kernel, two blend logits, and with
+    `guide` a luma and a chroma guide."""
+    return 2 * kernel * kernel + (4 if guide else 2)
 
 
 def reach(levels, kernel):
@@ -52,13 +53,26 @@ def _apply(x, weights, kernel):
     return (taps * weights.unsqueeze(1)).sum(2)
 
 
-def _filter_level(x, logits, kernel):
+def _range_term(guide, kernel):
+    """-(g(p + t) - g(p))^2 / 2 per tap t: the guide's learned range term (a cross-bilateral
+    on a predicted feature), so rejecting a tap across an edge -- a lamp beside a dark
+    ceiling -- takes one feature difference, not a learned logit per tap."""
+    n, _, h, w = guide.shape
+    taps = F.unfold(guide, kernel, padding=kernel // 2).view(n, kernel * kernel, h, w)
+    return -0.5 * (taps - guide) ** 2
+
+
+def _filter_level(x, logits, kernel, guide=False):
     """(fy, fc, luma blend logit, chroma blend logit) of one level; softmax over taps inside."""
     kk = kernel * kernel
     logits = _clean(logits)
     outside = ~_inside(kernel, x.shape[2], x.shape[3], x)
-    luma_w = torch.softmax(logits[:, :kk].masked_fill(outside, float("-inf")), dim=1)
-    chroma_w = torch.softmax(logits[:, kk : 2 * kk].masked_fill(outside, float("-inf")), dim=1)
+    luma_l, chroma_l = logits[:, :kk], logits[:, kk : 2 * kk]
+    if guide:
+        luma_l = luma_l + _range_term(logits[:, 2 * kk + 2 : 2 * kk + 3], kernel)
+        chroma_l = chroma_l + _range_term(logits[:, 2 * kk + 3 : 2 * kk + 4], kernel)
+    luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
+    chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
     fy = _apply(_lum(x), luma_w, kernel)
     fc = _apply(x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
@@ -83,11 +97,11 @@ def _recombine(cy, cc):
     return torch.where(ok, c * ratio, y)
 
 
-def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False):
+def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
-    [N, 2k^2 + 2, H / 2^l, W / 2^l]; `albedo` is read only when demodulating."""
+    [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating."""
     for level, f in enumerate(filters):
-        want = (rgb.shape[0], channels(kernel), rgb.shape[2] >> level, rgb.shape[3] >> level)
+        want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
             raise ValueError(f"filters[{level}] has shape {tuple(f.shape)}, expected {want}")
     d = albedo + eps if demodulate else None
@@ -96,7 +110,7 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     for level, f in enumerate(filters):
         if level:
             x = F.avg_pool2d(x, 2)
-        levels.append(_filter_level(x, f, kernel))
+        levels.append(_filter_level(x, f, kernel, guide))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
         cy, cc = _compose(fy, cy, a), _compose(fc, cc, b)
@@ -123,5 +137,6 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     hsv_t, aux_t = planes(hsv), planes(aux.astype(np.float32))
     rgb = planes(color.sanitize_rgb(noisy).astype(np.float32))
     filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
-    out = reconstruct(rgb, aux_t[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"])
+    out = reconstruct(rgb, aux_t[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"],
+                      guide=recon.get("guide", False))
     return np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]

@@ -70,6 +70,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, reco
         lines += ["A baseline the paper compares against; not built in: pass it as \"weights\" "
                   "(`temc denoise --model onnx/" + file + ".onnx`).", ""]
     hours = ck["train_seconds"] / 3600
+    hp = ck["hparams"]
     lines += [
         "**Small on purpose.** Trained for a fixed budget of "
         f"{ck['train_seconds'] / 60:.0f} CPU minutes on one core of this project's 2-core machine "
@@ -84,14 +85,25 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, reco
         f"| training run | training/runs/{run_name} |",
         f"| data | {ck['dataset']}, as it stands now: {data_opts}; the run trained on "
         f"{ck['train_scenes']} training scenes (the set was still rendering) |",
-        f"| steps | {ck['train_steps']:,} (batch 4, random 128x128 crops, flips, rotations, aux dropout) |",
-        f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, 1 thread "
-        f"({hours:.2f} h); validation excluded |",
-        "| optimiser | Adam, learning rate 5e-4 (the paper's 1e-4 suits its far longer run) |",
-        "| loss | the paper's L1 + MS-SSIM mix (alpha 0.84), taken on PQ R'G'B' of the reconstructed linear output (loss.training_loss) |",
+        f"| steps | {ck['train_steps']:,} (batch {hp['batch']}, random {hp['crop']}x{hp['crop']} crops, "
+        "flips, rotations, aux dropout) |",
+        f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, {hp['threads']} "
+        f"thread(s) ({hours:.2f} h); validation excluded |",
+        f"| optimiser | Adam, learning rate {hp['lr']:g} (the paper's 1e-4 suits its far longer run) |",
+        (f"| loss | relative MSE (loss.noise2noise_loss) against "
+         + (f"the reference render's {hp['target_spp']}-spp prefix (Noise2Noise) |" if hp["target_spp"]
+            else "the clean references |")
+         if hp.get("loss", "mix") == "relmse" else
+         f"| loss | the paper's L1 + MS-SSIM mix (alpha {hp['alpha']:g}), taken on PQ R'G'B' of the "
+         "reconstructed linear output (loss.training_loss)"
+         + (f", plus {hp['rel_weight']:g} x relative L1" if hp["rel_weight"] else "") + " |"),
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s) of {recon['kernel']}x{recon['kernel']} "
         f"{'luma and chroma kernels' if recon['split'] == 'both' else 'kernels (one for luma and chroma)'}, "
-        f"demodulation {'on' if recon['demodulate'] else 'off'}, applied by the core to the noisy linear radiance "
+        f"demodulation {'on' if recon['demodulate'] else 'off'}, "
+        + (("guides (the range term) on" + (f", added at step {ck['guide_from_step']:,}"
+                                            if ck.get("guide_from_step") else "") + ", ")
+           if recon.get("guide") else "")
+        + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid) |",
         f"| tile overlap | {overlap} px, from the measured effective reach of network + reconstruction "
         "(an impulse's effect below 1e-4 of its size; receptive.effective_overlap) |",
@@ -178,7 +190,11 @@ def main(argv=None):
               # Runs started before checkpoints named their data set trained on --data.
               "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(a.data or "unknown")),
               "params": count_params(model),
-              "train_scenes": raw["state"].get("train_scenes", "an unrecorded number of")}
+              "train_scenes": raw["state"].get("train_scenes", "an unrecorded number of"),
+              # Runs from before train.py stored its recipe ran with these (scripts/train-all).
+              "hparams": {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
+                          "rel_weight": 0.0, "target_spp": 0, "loss": "mix", **raw["state"].get("hparams", {})},
+              "guide_from_step": raw["state"].get("guide_from_step")}
         recon = recon_of(model)
         overlap = receptive.effective_overlap(model, recon)
         test_relmse = None

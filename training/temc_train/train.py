@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from . import data, shard
-from .loss import ALPHA, training_loss
+from .loss import ALPHA, noise2noise_loss, training_loss
 from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, count_params
 from .reconstruct import reconstruct
 
@@ -58,13 +58,14 @@ def _save(obj, path):
 def recon_settings(a) -> dict:
     """The reconstruction a run trains for; stored in its checkpoints and exported."""
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
-            "demodulate": bool(a.demodulate), "eps": a.eps}
+            "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide)}
 
 
 def denoise(model, xs, rs: dict):
     """Network + reconstruction on a batch of make_sample's arrays (as tensors)."""
     filters = model(*xs[:3])
-    return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"])
+    return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"],
+                       guide=rs.get("guide", False))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -96,6 +97,32 @@ def restore_optimizer_state(opt, saved: dict) -> None:
         state["state"][k] = {n: (t.float() if torch.is_tensor(t) and t.dim() > 0 else t)
                              for n, t in v.items()}
     opt.load_state_dict(state)
+
+
+def _grow(old: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+    """`like` with `old` in its first rows (a head conv's old outputs keep their order)."""
+    rows = like.clone()
+    rows[: old.shape[0]] = old.to(like.dtype)
+    return rows
+
+
+def add_guide(model, ck: dict) -> None:
+    """Loads a checkpoint trained without guide channels into `model` (built with them):
+    every weight is kept and the heads' guide rows keep their small random start, so the
+    run goes on where it was (the range term is near zero at first). Adam's moments are
+    kept too, zero for the new rows: restarting Adam cost a trained model 16 % of its
+    validation loss in ten steps."""
+    own = model.state_dict()
+    for k, v in ck["model"].items():
+        own[k] = v if own[k].shape == v.shape else _grow(v, own[k])
+    model.load_state_dict(own)
+    if ck.get("opt") is not None:
+        params = [p for p in model.parameters()]
+        for i, st in ck["opt"]["state"].items():
+            for n in ("exp_avg", "exp_avg_sq"):
+                if n in st and st[n].shape != params[int(i)].shape:
+                    st[n] = _grow(st[n], torch.zeros_like(params[int(i)], dtype=st[n].dtype))
+    ck["recon"] = dict(ck["recon"], guide=True)
 
 
 def pick_device(name: str) -> torch.device:
@@ -140,15 +167,16 @@ class Batches(torch.utils.data.IterableDataset):
     its own random stream (seed, step at start, worker): on a GPU the numpy sampling would
     otherwise be the bottleneck."""
 
-    def __init__(self, scenes, n, crop, seed):
+    def __init__(self, scenes, n, crop, seed, target_spp=0):
         super().__init__()
         self.scenes, self.n, self.crop, self.seed = scenes, n, crop, seed
+        self.target_spp = target_spp or None
 
     def __iter__(self):
         info = torch.utils.data.get_worker_info()
         rng = np.random.default_rng(self.seed + [info.id if info else 0])
         while True:
-            yield data.batch(self.scenes, rng, self.n, self.crop)
+            yield data.batch(self.scenes, rng, self.n, self.crop, target_spp=self.target_spp)
 
 
 def train(a) -> dict:
@@ -169,20 +197,32 @@ def train(a) -> dict:
         val_scenes = data.load_split(a.data, "val")
         dataset = os.path.basename(os.path.normpath(a.data))
         source = a.data
+    if a.target_spp:
+        train_scenes = [s for s in train_scenes if s.has_reference_prefix(a.target_spp)]
     if not train_scenes:
         raise SystemExit(f"{source}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
     torch.manual_seed(a.seed)
     rs = recon_settings(a)
-    model = build(a.arch, a.width, a.levels, a.kernel, a.split)
+    model = build(a.arch, a.width, a.levels, a.kernel, a.split, bool(a.guide))
     state = {"step": 0, "train_s": 0.0, "gpu_seconds": 0.0,
              "rng": np.random.default_rng(a.seed).bit_generator.state}
     if os.path.exists(ckpt_path):
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        held = (ck["arch"], ck["width"], ck.get("recon"))
+        held_recon = dict(ck.get("recon") or {})
+        upgrade = a.guide and not held_recon.get("guide", False)
+        held_recon.setdefault("guide", False)
+        if upgrade:
+            held_recon["guide"] = True
+        held = (ck["arch"], ck["width"], held_recon)
         if held != (a.arch, a.width, rs):
             raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
-        model.load_state_dict(ck["model"])
+        if upgrade:
+            add_guide(model, ck)
+            ck["state"]["guide_from_step"] = ck["state"]["step"]
+            print(f"{ckpt_path}: adding the guide channels", flush=True)
+        else:
+            model.load_state_dict(ck["model"])
     model.to(device)
     opt = torch.optim.Adam(model.parameters(), lr=a.lr)
     if os.path.exists(ckpt_path):
@@ -206,7 +246,7 @@ def train(a) -> dict:
     def batches(scenes):
         if a.workers <= 0:
             return None
-        dl = torch.utils.data.DataLoader(Batches(scenes, a.batch, a.crop, [a.seed, state["step"]]),
+        dl = torch.utils.data.DataLoader(Batches(scenes, a.batch, a.crop, [a.seed, state["step"]], a.target_spp),
                                          batch_size=None, num_workers=a.workers, pin_memory=cuda,
                                          prefetch_factor=4, persistent_workers=False)
         return iter(dl)
@@ -214,6 +254,10 @@ def train(a) -> dict:
     def checkpoint():
         state["rng"] = rng.bit_generator.state
         state["train_scenes"] = len(train_scenes)  # the model card says what the run saw
+        # The model card reads the recipe from here, not from constants that could drift.
+        state["hparams"] = {"lr": a.lr, "batch": a.batch, "crop": a.crop, "threads": a.threads,
+                            "alpha": a.alpha, "rel_weight": a.rel_weight,
+                            "target_spp": a.target_spp, "loss": a.loss}
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
@@ -231,10 +275,13 @@ def train(a) -> dict:
     while (used() < budget and state["step"] < a.max_steps
            and time.monotonic() - start < wall):
         t0 = time.monotonic() if cuda else time.process_time()
-        arrays = data.batch(train_scenes, rng, a.batch, a.crop) if loader is None else next(loader)
+        arrays = (data.batch(train_scenes, rng, a.batch, a.crop, target_spp=a.target_spp or None)
+                  if loader is None else next(loader))
         xs = [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(device, non_blocking=True)
               for v in arrays]
-        loss = training_loss(denoise(model, xs, rs), xs[5], a.alpha, a.rel_weight)
+        out = denoise(model, xs, rs)
+        loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
+                else training_loss(out, xs[5], a.alpha, a.rel_weight))
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -252,6 +299,8 @@ def train(a) -> dict:
             if not a.shard:
                 n = len(train_scenes)
                 train_scenes = data.refresh_split(a.data, "train", train_scenes)
+                if a.target_spp:
+                    train_scenes = [s for s in train_scenes if s.has_reference_prefix(a.target_spp)]
                 if loader is not None and len(train_scenes) != n:
                     loader = batches(train_scenes)
             w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
@@ -285,6 +334,9 @@ def main(argv=None):
     ap.add_argument("--demodulate", type=int, choices=(0, 1), default=0,
                     help="filter radiance / (albedo + eps) and multiply back")
     ap.add_argument("--eps", type=float, default=0.01, help="demodulation's epsilon")
+    ap.add_argument("--guide", type=int, choices=(0, 1), default=0,
+                    help="predict a guide per filter whose differences reject taps (the range "
+                         "term); a run trained without it gains it on resume")
     ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
     ap.add_argument("--hours", type=float, default=1.0,
                     help="cumulative training budget: CPU hours spent in steps, plus wall hours of "
@@ -305,11 +357,20 @@ def main(argv=None):
                     help="MS-SSIM weight of the mix loss (the paper's 0.84; 0 = L1 only)")
     ap.add_argument("--rel-weight", type=float, default=0.0,
                     help="weight of the relative L1 on linear values added to the mix loss")
+    ap.add_argument("--target-spp", type=int, default=0,
+                    help="Noise2Noise: train against the reference render's prefix at this spp "
+                         "(written by `temc-render dataset --ref-prefix-spp`); validation still "
+                         "uses the clean references and the mix loss. 0: the clean references")
+    ap.add_argument("--loss", choices=("mix", "relmse"), default=None,
+                    help="mix: the paper's L1 + MS-SSIM on PQ (loss.training_loss); relmse: "
+                         "loss.noise2noise_loss, unbiased under zero-mean target noise. "
+                         "Default: relmse with --target-spp, else mix")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--val-minutes", type=float, default=5.0)
     ap.add_argument("--save-minutes", type=float, default=5.0)
     a = ap.parse_args(argv)
+    a.loss = a.loss or ("relmse" if a.target_spp else "mix")
     f = train(a)
     print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} CPU s + "
           f"{f['gpu_seconds']:.0f} GPU s -> {a.run}/model.pt")

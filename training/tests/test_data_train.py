@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from temc_train import data, export, train
+from temc_train.models import build
 
 SIZE = 32
 
@@ -132,3 +133,25 @@ def test_training_resumes_and_exports(dataset, tmp_path):
     assert rows[0].startswith("step") and rows[-1].startswith("4,")
     model, arch, width, info = export.load_checkpoint(os.path.join(run, "model.pt"))
     assert (arch, width, info["train_steps"]) == ("ae", 0.0625, 4)
+
+
+def test_a_run_gains_the_guide_on_resume_and_keeps_its_outputs(dataset, tmp_path):
+    # Resuming a run without guide channels with --guide 1 keeps every trained weight and
+    # Adam moment; the new guide rows start small, so the filters barely move.
+    run = str(tmp_path / "run")
+    args = ["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--levels", "1", "--run", run,
+            "--crop", "32", "--batch", "2", "--val-minutes", "0", "--threads", "1"]
+    train.main(args + ["--max-steps", "2"])
+    before, *_ = export.load_checkpoint(os.path.join(run, "model.pt"))
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    grown = build("temc2", 0.0625, 1, 5, "both", True)
+    train.add_guide(grown, ck)
+    xs = [torch.rand(1, c, 32, 32) for c in (2, 1, 7)]
+    with torch.no_grad():
+        old, new = before.eval()(*xs)[0], grown.eval()(*xs)[0]
+    assert new.shape[1] == old.shape[1] + 2
+    assert torch.equal(new[:, :old.shape[1]], old)
+    assert 0 < float(new[:, old.shape[1]:].abs().max()) < 1.0
+    train.main(args + ["--guide", "1", "--max-steps", "3"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["recon"]["guide"] and ck["state"]["step"] == 3 and ck["opt"] is not None

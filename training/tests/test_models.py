@@ -118,3 +118,14 @@ def test_unknown_architecture_and_split():
         build("temc2", 1.0, split="three")
     with pytest.raises(ValueError):
         build("temc2", 1.0, kernel=4)
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_guide_heads_add_two_channels_that_start_small_and_nonzero(arch):
+    m = build(arch, 0.0625, levels=1, guide=True).eval()
+    with torch.no_grad():
+        y = m(torch.rand(1, 2, 32, 32), torch.rand(1, 1, 32, 32), torch.rand(1, 7, 32, 32))[0]
+    c = filter_channels(KERNEL)
+    assert y.shape[1] == filter_channels(KERNEL, True) == c + 2
+    assert torch.equal(y[:, :c], torch.zeros_like(y[:, :c]))
+    assert 0 < float(y[:, c:].abs().max()) < 1.0

@@ -128,3 +128,20 @@ def test_non_finite_and_huge_logits_give_finite_output_and_gradients(demodulate,
 def test_bad_filter_shapes_are_errors():
     with pytest.raises(ValueError):
         reconstruct(torch.zeros(1, 3, 8, 8), None, [torch.zeros(1, channels(3), 8, 4)], 3)
+
+
+def test_guide_channels_and_their_gradient():
+    # The range term is differentiable in the guides where they differ (the heads start
+    # them small and random for that reason) and fences a lamp off where they differ a lot.
+    assert channels(5, True) == 54
+    rgb = torch.full((1, 3, 8, 8), 0.1)
+    rgb[:, :, 2:4, 2:4] = 500.0
+    f = torch.zeros(1, channels(3, True), 8, 8)
+    f[:, -2:, 2:4, 2:4] = 6.0
+    out = reconstruct(rgb, None, [f], 3, guide=True)
+    assert abs(float(lum(out)[0, 4, 4]) - 0.1) < 1e-3
+    assert float(lum(reconstruct(rgb, None, [f[:, :-2]], 3))[0, 4, 4]) > 50.0
+    g = (0.01 * torch.randn(1, 2, 8, 8)).requires_grad_()
+    out = reconstruct(rgb, None, [torch.cat([torch.zeros(1, 2 * 9 + 2, 8, 8), g], 1)], 3, guide=True)
+    out.sum().backward()
+    assert float(g.grad.abs().max()) > 0
