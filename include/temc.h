@@ -403,7 +403,8 @@ int32_t temcGetDevice1i(TEMCDevice device, const char *name);
 // it is replaced or the device is gone.
 void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void *user_ptr);
 
-// Returns the first error not yet queried and clears it; `out_message` (may be NULL)
+// Returns the first error not yet queried by the calling thread (errors are kept per
+// thread, as in OIDN) and clears it; `out_message` (may be NULL)
 // receives its text (NULL for no error), valid until the next query. A NULL device
 // returns this thread's errors that had no device (device creation, NULL or released
 // handles, physical device queries).

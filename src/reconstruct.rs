@@ -864,9 +864,20 @@ mod tests {
             ..params(1, k)
         };
         let out = run(&p, &rgb, None, &[f], h, w);
-        let unguided = run(&params(1, k), &rgb, None, &[vec![0.0; channels(k, false) * n]], h, w);
+        let unguided = run(
+            &params(1, k),
+            &rgb,
+            None,
+            &[vec![0.0; channels(k, false) * n]],
+            h,
+            w,
+        );
         let beside = 4 * w + 4; // diagonal to the lamp's corner (3, 3)
-        assert!(close(lum(&out, n, beside), 0.1, 1e-3), "{}", lum(&out, n, beside));
+        assert!(
+            close(lum(&out, n, beside), 0.1, 1e-3),
+            "{}",
+            lum(&out, n, beside)
+        );
         assert!(lum(&unguided, n, beside) > 50.0);
         assert!(close(lum(&out, n, 2 * w + 2), 500.0, 1e-3));
     }

@@ -460,7 +460,10 @@ fn device_errors_are_per_thread() {
     })
     .join()
     .unwrap();
-    assert_eq!(other.0, TEMC_ERROR_NONE, "the other thread does not see this one's error");
+    assert_eq!(
+        other.0, TEMC_ERROR_NONE,
+        "the other thread does not see this one's error"
+    );
     assert_ne!(other.1, TEMC_ERROR_NONE, "{}", other.2);
     let (code, msg) = error(d);
     assert_eq!(code, TEMC_ERROR_INVALID_ARGUMENT);

@@ -251,7 +251,8 @@ fn the_spectral_layer_is_denoised_through_the_cie_observer() {
     use exr::prelude::*;
     let d = scratch("spectral");
     let (w, h, bands) = (24, 20, 16);
-    let value = |i: usize, b: usize| 0.2 + 0.05 * b as f32 + ((i * 7919 + b * 31) % 53) as f32 / 80.0;
+    let value =
+        |i: usize, b: usize| 0.2 + 0.05 * b as f32 + ((i * 7919 + b * 31) % 53) as f32 / 80.0;
     let mut ch: Vec<AnyChannel<FlatSamples>> = (0..bands)
         .map(|b| {
             let v = (0..w * h).map(|i| value(i, b)).collect();
@@ -265,14 +266,22 @@ fn the_spectral_layer_is_denoised_through_the_cie_observer() {
             Encoding::FAST_LOSSLESS,
             AnyChannels::sort(ch.into()),
         );
-        Image::from_layer(layer).write().to_file(d.join(name)).unwrap();
+        Image::from_layer(layer)
+            .write()
+            .to_file(d.join(name))
+            .unwrap();
     };
     write(ch.clone(), "spectral.exr");
     let conv = temc::color::SpectralBands::uniform(bands, 380.0, 780.0).unwrap();
-    let px: Vec<f32> = (0..w * h).flat_map(|i| (0..bands).map(move |b| value(i, b))).collect();
+    let px: Vec<f32> = (0..w * h)
+        .flat_map(|i| (0..bands).map(move |b| value(i, b)))
+        .collect();
     temc::io::write_rgb(&d.join("rgb.pfm"), w, h, &conv.image_to_linear_srgb(&px)).unwrap();
     for c in ["R", "G", "B"] {
-        ch.push(AnyChannel::new(format!("color.{c}").as_str(), FlatSamples::F32(vec![0.0; w * h])));
+        ch.push(AnyChannel::new(
+            format!("color.{c}").as_str(),
+            FlatSamples::F32(vec![0.0; w * h]),
+        ));
     }
     write(ch, "both.exr");
     let run = |input: &str, flags: &[&str], out: &str| {
@@ -291,13 +300,21 @@ fn the_spectral_layer_is_denoised_through_the_cie_observer() {
     };
     for (input, flags) in [("spectral.exr", &[][..]), ("both.exr", &["--spectral"][..])] {
         let out = run(input, flags, "got.pfm");
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         assert_eq!(finite_rgb(&d.join("got.pfm")).2, want, "{input} {flags:?}");
     }
     let out = run("rgb.pfm", &["--spectral"], "no.pfm");
     assert!(!out.status.success() && !d.join("no.pfm").exists());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no spectral layer"));
-    let out = run("spectral.exr", &["--spectral", "--spectral-range", "700,400"], "no.pfm");
+    let out = run(
+        "spectral.exr",
+        &["--spectral", "--spectral-range", "700,400"],
+        "no.pfm",
+    );
     assert!(!out.status.success() && !d.join("no.pfm").exists());
     std::fs::remove_dir_all(&d).ok();
 }

@@ -266,9 +266,6 @@ mod tests {
     /// The built-in model lowers the demo's error: the shipped model does its job on the
     /// README's first command (docs/accuracy-vs-time.md has the full measurements).
     #[test]
-    #[ignore = "the format-2 models (issue 14, ~10 CPU minutes each) leak the visible lamp \
-                into the ceiling beside it: RelMSE 4.2 against the noisy 0.08 here; \
-                run with --ignored once issue 15's models ship"]
     fn demo_lowers_the_error() {
         let (o, out) = tiny("quality");
         let r = run(&o, &|_| {}).unwrap();

@@ -350,7 +350,10 @@ fn run(cli: Cli) -> temc::Result<()> {
 fn parse_range(s: &str) -> Result<(f32, f32), String> {
     let bad = || format!("{s:?}: expected MIN,MAX in nm, e.g. 380,780");
     let (a, b) = s.split_once(',').ok_or_else(bad)?;
-    let (a, b) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+    let (a, b) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
     Ok((a, b))
 }
 

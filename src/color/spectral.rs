@@ -122,7 +122,7 @@ impl SpectralBands {
     /// `bands` equal bands over `min_nm..max_nm`: the layout of temc-render's `spectral`
     /// EXR layer (16 over 380..780 nm) and of the C API's "spectral" image.
     pub fn uniform(bands: usize, min_nm: f32, max_nm: f32) -> Result<Self, Error> {
-        if bands == 0 || !(max_nm > min_nm) {
+        if bands == 0 || max_nm.partial_cmp(&min_nm) != Some(std::cmp::Ordering::Greater) {
             return Err(Error::InvalidArgument(format!(
                 "spectral bands: need at least one band over a range with max > min, got \
                  {bands} over {min_nm}..{max_nm} nm"

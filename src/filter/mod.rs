@@ -23,6 +23,7 @@
 //! ```
 
 mod builtin;
+mod denormals;
 mod execute;
 
 pub use builtin::builtin_model;
@@ -133,6 +134,7 @@ impl Device {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .thread_name(|i| format!("temc-{i}"))
+            .start_handler(|_| denormals::flush_to_zero())
             .build()
             .map_err(|e| Error::OutOfMemory(format!("thread pool: {e}")))?;
         s.pool = Some(Arc::new(pool));

@@ -156,7 +156,11 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
     if bands > 0 {
         let planes: Vec<&Vec<f32>> = (0..bands).filter_map(band).collect();
         let px = width * height;
-        out.spectral = Some((0..px).flat_map(|i| planes.iter().map(move |p| p[i])).collect());
+        out.spectral = Some(
+            (0..px)
+                .flat_map(|i| planes.iter().map(move |p| p[i]))
+                .collect(),
+        );
         out.spectral_bands = bands;
     }
     out.depth = DEPTH.iter().find_map(|pass| {

@@ -128,6 +128,37 @@ def verdict(mean, spps, labels, rows):
     return out
 
 
+# Issue 15's targets against OIDN high: (spp, RelMSE ratio bound, Delta E ratio bound).
+TARGETS = ((4, 1.0, 1.0), (16, 0.8, 0.7), (64, 1.0, 1.0))
+MEAN_TOLERANCE = 0.01
+
+
+def targets(denoisers, spps, values, geomean, mean) -> list:
+    """The targets section: per temc model and spp, geometric-mean RelMSE and mean Delta E
+    ITP as ratios to OIDN high's on the same images, against the bounds, and the worst
+    scene's |mean / reference mean - 1| (the noisy input's beside it: the render's own)."""
+    ours = [n for n in denoisers if n.startswith("TEMC") or n.startswith("AE") or n.startswith("DEMC")]
+    md = ["## Targets (issue 15)", "",
+          "Geometric-mean RelMSE and mean Delta E ITP over the test scenes as ratios to OIDN "
+          "high's on the same images (bounds: 16 spp RelMSE <= 0.8x and Delta E <= 0.7x; 4 and "
+          f"64 spp no worse, <= 1x), and the worst scene's mean error (bound {100 * MEAN_TOLERANCE:.0f} %; "
+          "the noisy input's worst is the render's own noise in the mean).", "",
+          "| model | spp | RelMSE / OIDN | bound | dE ITP / OIDN | bound | worst mean error | noisy's worst | OIDN's worst |",
+          "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    worst = lambda n, s: max((abs(v - 1) for v in values(n, s, "mean/ref")), default=float("nan"))  # noqa: E731
+    for n in ours:
+        for spp, rb, db in TARGETS:
+            if spp not in spps:
+                continue
+            r = geomean(n, spp, "RelMSE") / geomean("OIDN high", spp, "RelMSE")
+            d = mean(n, spp, "dE-ITP") / mean("OIDN high", spp, "dE-ITP")
+            mark = lambda v, b: f"**{v:.2f}x**" if v <= b else f"{v:.2f}x"  # noqa: E731
+            md.append(f"| {n} | {spp} | {mark(r, rb)} | {rb:g}x | {mark(d, db)} | {db:g}x | "
+                      f"{100 * worst(n, spp):.1f} % | {100 * worst('noisy', spp):.1f} % | "
+                      f"{100 * worst('OIDN high', spp):.1f} % |")
+    return md + ["", "Bold: the bound is met.", ""]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True)
@@ -311,6 +342,7 @@ def main(argv=None):
           f"Machine: {cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}. Denoise seconds "
           "are execution only (model loading excluded, for temc and OIDN alike); render seconds come "
           "from the data set's progressive renders (2 threads), scaled by spp.", ""]
+    md += targets(denoisers, spps, values, geomean, mean)
     for s in spps:
         md += [f"## {s} spp", "", "| denoiser | " + " | ".join(metrics) + " | denoise s |",
                "|---|" + "---:|" * (len(metrics) + 1)]

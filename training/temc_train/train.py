@@ -125,6 +125,17 @@ def add_guide(model, ck: dict) -> None:
     ck["recon"] = dict(ck["recon"], guide=True)
 
 
+LR_FLOOR = 0.05
+
+
+def learning_rate(a, trained_s: float) -> float:
+    """`--lr`, halved every `--lr-half-life` hours of the run's cumulative training time
+    (so the schedule survives resumes), down to LR_FLOOR of it; constant without a half-life."""
+    if not a.lr_half_life:
+        return a.lr
+    return a.lr * max(LR_FLOOR, 0.5 ** (trained_s / 3600.0 / a.lr_half_life))
+
+
 def pick_device(name: str) -> torch.device:
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
@@ -255,7 +266,8 @@ def train(a) -> dict:
         state["rng"] = rng.bit_generator.state
         state["train_scenes"] = len(train_scenes)  # the model card says what the run saw
         # The model card reads the recipe from here, not from constants that could drift.
-        state["hparams"] = {"lr": a.lr, "batch": a.batch, "crop": a.crop, "threads": a.threads,
+        state["hparams"] = {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch,
+                            "crop": a.crop, "threads": a.threads,
                             "alpha": a.alpha, "rel_weight": a.rel_weight,
                             "target_spp": a.target_spp, "loss": a.loss}
         ck = {"model": cpu_state(model.state_dict()),
@@ -275,6 +287,8 @@ def train(a) -> dict:
     while (used() < budget and state["step"] < a.max_steps
            and time.monotonic() - start < wall):
         t0 = time.monotonic() if cuda else time.process_time()
+        for g in opt.param_groups:
+            g["lr"] = learning_rate(a, used())
         arrays = (data.batch(train_scenes, rng, a.batch, a.crop, target_spp=a.target_spp or None)
                   if loader is None else next(loader))
         xs = [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(device, non_blocking=True)
@@ -353,6 +367,9 @@ def main(argv=None):
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--crop", type=int, default=data.CROP)
     ap.add_argument("--lr", type=float, default=1e-4)
+    ap.add_argument("--lr-half-life", type=float, default=0.0,
+                    help="halve the learning rate every this many hours of cumulative training "
+                         "(0: constant)")
     ap.add_argument("--alpha", type=float, default=ALPHA,
                     help="MS-SSIM weight of the mix loss (the paper's 0.84; 0 = L1 only)")
     ap.add_argument("--rel-weight", type=float, default=0.0,

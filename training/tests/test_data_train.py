@@ -62,10 +62,15 @@ def dataset(tmp_path_factory):
             write_exr(d / f"spp{spp:04}.exr", img)
             noisy.append([spp, f"spp{spp:04}.exr"])
         write_exr(d / "ref.exr", ref)
+        # A noisy reference prefix (Noise2Noise target) on the first scene only.
+        prefixes = []
+        if i == 0:
+            write_exr(d / "ref-spp0002.exr", fake_scene(rng, 0.5)[0])
+            prefixes = [[2, "ref-spp0002.exr"]]
         (d / "scene.txt").write_text("camera eye 0 0 -3 target 0 0 0 fov 40\n")
         records.append({"name": name, "split": split, "dir": f"{split}/{name}", "noisy": noisy,
-                        "reference": "ref.exr", "seconds_noisy": 0, "seconds_reference": 0,
-                        "features": ""})
+                        "reference": "ref.exr", "reference_prefixes": prefixes,
+                        "seconds_noisy": 0, "seconds_reference": 0, "features": ""})
     (root / "manifest.json").write_text(json.dumps({"scenes": records}))
     return str(root)
 
@@ -155,3 +160,34 @@ def test_a_run_gains_the_guide_on_resume_and_keeps_its_outputs(dataset, tmp_path
     train.main(args + ["--guide", "1", "--max-steps", "3"])
     ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
     assert ck["recon"]["guide"] and ck["state"]["step"] == 3 and ck["opt"] is not None
+
+
+def test_noise2noise_trains_on_the_reference_prefix(dataset, tmp_path):
+    # --target-spp trains only on scenes with that prefix, against the prefix, with the
+    # relative MSE; the checkpoint records the recipe for the model card.
+    scenes = data.load_split(dataset, "train")
+    with_prefix = [s for s in scenes if s.has_reference_prefix(2)]
+    assert len(with_prefix) == 1 and not scenes[1].has_reference_prefix(2)
+    target = data.make_sample(with_prefix[0], np.random.default_rng(0), 32, spp_index=0,
+                              augment=False, aux_mode="full", origin=(0, 0), target_spp=2)[5]
+    clean = data.make_sample(with_prefix[0], np.random.default_rng(0), 32, spp_index=0,
+                             augment=False, aux_mode="full", origin=(0, 0))[5]
+    assert not np.allclose(target, clean)
+    run = str(tmp_path / "n2n")
+    train.main(["--data", dataset, "--arch", "ae", "--width", "0.0625", "--run", run, "--crop", "32",
+                "--batch", "2", "--val-minutes", "0", "--threads", "1", "--target-spp", "2",
+                "--max-steps", "2", "--lr-half-life", "1"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    hp = ck["state"]["hparams"]
+    assert (hp["target_spp"], hp["loss"], hp["lr_half_life"]) == (2, "relmse", 1.0)
+    assert ck["state"]["train_scenes"] == 1
+
+
+def test_the_learning_rate_halves_with_training_time():
+    class A:
+        lr, lr_half_life = 1e-3, 2.0
+    assert train.learning_rate(A, 0.0) == 1e-3
+    assert abs(train.learning_rate(A, 2 * 3600.0) - 5e-4) < 1e-12
+    assert train.learning_rate(A, 1e9) == 1e-3 * train.LR_FLOOR
+    A.lr_half_life = 0.0
+    assert train.learning_rate(A, 1e9) == 1e-3

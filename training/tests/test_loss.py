@@ -91,3 +91,19 @@ def test_training_loss_punishes_darkening_and_desaturation():
     p = torch.zeros(1, 3, 16, 16, requires_grad=True)
     training_loss(p, torch.rand(1, 3, 16, 16)).backward()
     assert torch.isfinite(p.grad).all()
+
+
+def test_noise2noise_loss_trains_towards_the_targets_mean():
+    # The gradient (the denominator carries none) pushes a constant prediction towards the
+    # noisy targets' mean, the clean value, from either side.
+    from temc_train.loss import noise2noise_loss
+    torch.manual_seed(0)
+    targets = 0.5 * torch.distributions.Exponential(1.0).sample((4096, 3, 2, 2))
+    mean = float(targets.mean())
+    for v, sign in ((0.3, -1), (0.7, 1)):
+        pred = torch.full_like(targets, v, requires_grad=True)
+        noise2noise_loss(pred, targets).backward()
+        assert sign * float(pred.grad.sum()) > 0
+    pred = torch.full_like(targets, mean, requires_grad=True)
+    noise2noise_loss(pred, targets).backward()
+    assert abs(float(pred.grad.sum())) < 1e-6
