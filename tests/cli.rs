@@ -31,6 +31,23 @@ fn finite_rgb(path: &Path) -> (usize, usize, Vec<f32>) {
     (b.width, b.height, c)
 }
 
+/// A one-layer EXR holding `channels` (full names such as `color.R`).
+fn write_exr(
+    path: &Path,
+    w: usize,
+    h: usize,
+    channels: Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+) {
+    use exr::prelude::*;
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
 #[test]
 fn denoise_pfm_and_exr_with_json_report() {
     let d = scratch("formats");
@@ -165,16 +182,7 @@ fn color_only_ignores_aux_layers_in_the_colour_file() {
         .iter()
         .map(|n| AnyChannel::new(*n, FlatSamples::F32(vec![0.5; w * h])))
         .collect();
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(ch.into()),
-    );
-    Image::from_layer(layer)
-        .write()
-        .to_file(d.join("in.exr"))
-        .unwrap();
+    write_exr(&d.join("in.exr"), w, h, ch);
     // Which aux layers each flag keeps: (albedo, normal, depth).
     for (flags, expect) in [
         (&[][..], [true, true, true]),
@@ -259,19 +267,7 @@ fn the_spectral_layer_is_denoised_through_the_cie_observer() {
             AnyChannel::new(format!("spectral.b{b:02}").as_str(), FlatSamples::F32(v))
         })
         .collect();
-    let write = |ch: Vec<AnyChannel<FlatSamples>>, name: &str| {
-        let layer = Layer::new(
-            (w, h),
-            LayerAttributes::default(),
-            Encoding::FAST_LOSSLESS,
-            AnyChannels::sort(ch.into()),
-        );
-        Image::from_layer(layer)
-            .write()
-            .to_file(d.join(name))
-            .unwrap();
-    };
-    write(ch.clone(), "spectral.exr");
+    write_exr(&d.join("spectral.exr"), w, h, ch.clone());
     let conv = temc::color::SpectralBands::uniform(bands, 380.0, 780.0).unwrap();
     let px: Vec<f32> = (0..w * h)
         .flat_map(|i| (0..bands).map(move |b| value(i, b)))
@@ -283,7 +279,7 @@ fn the_spectral_layer_is_denoised_through_the_cie_observer() {
             FlatSamples::F32(vec![0.0; w * h]),
         ));
     }
-    write(ch, "both.exr");
+    write_exr(&d.join("both.exr"), w, h, ch);
     let run = |input: &str, flags: &[&str], out: &str| {
         temc()
             .args(["denoise", "--model", MODEL, "--threads", "1", "--color"])

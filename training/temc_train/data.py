@@ -135,20 +135,25 @@ def auto_input_scale(rgb: np.ndarray) -> float:
     return float(np.clip(color.AUTO_EXPOSURE_KEY / np.exp(np.log(y).mean()), 1e-20, 1e20))
 
 
-def load_split(root: str, split: str) -> list:
-    """Every finished scene of a split."""
+def _records(root: str, split: str, prefix_spp=None) -> list:
+    """The manifest's finished scenes of a split; with `prefix_spp`, only those that have a
+    reference prefix at that spp (Noise2Noise targets), so the rest are never read."""
     with open(os.path.join(root, "manifest.json")) as f:
         m = json.load(f)
-    return [Scene(root, r) for r in m["scenes"] if r["split"] == split]
+    return [r for r in m["scenes"] if r["split"] == split
+            and (not prefix_spp or any(int(s) == prefix_spp for s, _ in r.get("reference_prefixes", [])))]
 
 
-def refresh_split(root: str, split: str, scenes: list) -> list:
+def load_split(root: str, split: str, prefix_spp=None) -> list:
+    """Every finished scene of a split (see `_records` for `prefix_spp`)."""
+    return [Scene(root, r) for r in _records(root, split, prefix_spp)]
+
+
+def refresh_split(root: str, split: str, scenes: list, prefix_spp=None) -> list:
     """`scenes` plus the split's scenes finished since they were loaded: a run started while
     the data set still renders trains on every scene as it lands."""
-    with open(os.path.join(root, "manifest.json")) as f:
-        m = json.load(f)
     have = {s.name for s in scenes}
-    new = [Scene(root, r) for r in m["scenes"] if r["split"] == split and r["name"] not in have]
+    new = [Scene(root, r) for r in _records(root, split, prefix_spp) if r["name"] not in have]
     if new:
         print(f"{len(new)} new {split} scene(s), {len(scenes) + len(new)} in all", flush=True)
     return scenes + new

@@ -204,12 +204,10 @@ def train(a) -> dict:
         dataset = shard.read_manifest(a.shard)["dataset"]
         source = a.shard
     else:
-        train_scenes = data.load_split(a.data, "train")
+        train_scenes = data.load_split(a.data, "train", a.target_spp)
         val_scenes = data.load_split(a.data, "val")
         dataset = os.path.basename(os.path.normpath(a.data))
         source = a.data
-    if a.target_spp:
-        train_scenes = [s for s in train_scenes if s.has_reference_prefix(a.target_spp)]
     if not train_scenes:
         raise SystemExit(f"{source}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
@@ -312,9 +310,7 @@ def train(a) -> dict:
             v = validate(model, val, a.alpha, rs, a.rel_weight, device=device)
             if not a.shard:
                 n = len(train_scenes)
-                train_scenes = data.refresh_split(a.data, "train", train_scenes)
-                if a.target_spp:
-                    train_scenes = [s for s in train_scenes if s.has_reference_prefix(a.target_spp)]
+                train_scenes = data.refresh_split(a.data, "train", train_scenes, a.target_spp)
                 if loader is not None and len(train_scenes) != n:
                     loader = batches(train_scenes)
             w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])

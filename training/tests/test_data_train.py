@@ -168,6 +168,7 @@ def test_noise2noise_trains_on_the_reference_prefix(dataset, tmp_path):
     scenes = data.load_split(dataset, "train")
     with_prefix = [s for s in scenes if s.has_reference_prefix(2)]
     assert len(with_prefix) == 1 and not scenes[1].has_reference_prefix(2)
+    assert [s.name for s in data.load_split(dataset, "train", 2)] == [with_prefix[0].name]
     target = data.make_sample(with_prefix[0], np.random.default_rng(0), 32, spp_index=0,
                               augment=False, aux_mode="full", origin=(0, 0), target_spp=2)[5]
     clean = data.make_sample(with_prefix[0], np.random.default_rng(0), 32, spp_index=0,
