@@ -15,6 +15,8 @@ pub mod spectral;
 pub use hsv::{hsv_to_rgb, rgb_to_hsv, sanitize_hsv};
 pub use sanitize::{sanitize_channel, sanitize_rgb, LINEAR_MAX, LUMA_WEIGHTS};
 pub use spectral::SpectralBands;
+/// The channels of temc-render's multi-layer EXR (from the shared `temc-color` crate).
+pub use temc_color::layers;
 
 use crate::Error;
 

@@ -1,0 +1,19 @@
+//! The colour science that temc (the denoiser) and temc-render (the tracer) share, so a
+//! render and the denoiser that reads it convert spectra with the same numbers.
+//!
+//! - [`cie`]: the CIE 1931 colour matching functions, their integrals, XYZ -> linear sRGB.
+//! - [`layers`]: the channels of temc-render's multi-layer EXR, spectral bands included.
+//!
+//! No dependencies: the tracer's library builds without the denoiser (and without tract).
+//! `temc::color::spectral` re-exports [`cie`] and `temc::color::layers` re-exports
+//! [`layers`], so the denoiser's paths stay as they were.
+//!
+//! ```
+//! let xyz = temc_color::cie::cmf(555.0);
+//! assert!((xyz[1] - 1.0).abs() < 0.02);
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod cie;
+pub mod layers;
