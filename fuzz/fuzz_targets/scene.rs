@@ -7,7 +7,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    match temc_render::format::parse(text, "fuzz", None) {
+    match temc_render::description::format::parse(text, "fuzz", None) {
         Ok(scene) => {
             let _ = scene.features();
             let img = temc_render::render(

@@ -1,172 +1,45 @@
 //! temc-render: a spectral Monte Carlo path tracer for temc's data sets and demo scenes.
 //!
 //! Paths carry four hero wavelengths; the film converts them to CIE XYZ with the same
-//! colour matching functions as the denoiser (`temc::color`), so training data and
-//! inference agree. The renderer inspects each scene ([`scene::Scene::features`]) and runs
-//! the cheapest correct kernel ([`integrator::Kernel`]).
+//! colour matching functions as the denoiser (the `temc-color` crate, which temc
+//! re-exports as `temc::color`), so training data and inference agree. The renderer
+//! inspects each scene ([`scene::Scene::features`]) and runs the cheapest correct kernel
+//! ([`integrator::Kernel`]).
+//!
+//! The modules are the stages of a render, each using only those above it:
+//!
+//! | module | stage |
+//! |---|---|
+//! | [`geometry`] | vectors, primitives, the BVH |
+//! | [`spectral`] | spectra, the wavelengths a path carries, their sampling |
+//! | [`materials`] | materials, their scattering functions, textures |
+//! | [`camera`], [`scene`] | the camera; the assembled scene the integrator queries |
+//! | [`description`] | scene input: the file format, OBJ, generated and named scenes |
+//! | [`rng`], [`integrator`] | random numbers; path tracing with next-event estimation |
+//! | [`film`], [`output`] | pixel sums, output layers, the EXR; atomic file writes |
+//! | [`render()`], [`render_progressive`] | the loop over pixels that ties them together |
+//!
+//! The applications (`dataset`, `demo`, `bench`) are modules of the `temc-render` binary.
 //!
 //! ```
-//! use temc_render::{render, scene, Settings};
-//! let scene = scene::named("cornell-spiky").unwrap();
+//! use temc_render::{description::named, render, Settings};
+//! let scene = named::scene("cornell-spiky").unwrap();
 //! let img = render(&scene, &Settings { width: 16, height: 16, spp: 4, ..Settings::default() });
 //! assert_eq!(img.color.len(), 16 * 16);
 //! ```
 
 #![warn(missing_docs)]
 
-pub mod bvh;
-pub mod dataset;
-pub mod demo;
+pub mod camera;
+pub mod description;
 pub mod film;
-pub mod format;
-pub mod generate;
+pub mod geometry;
 pub mod integrator;
-pub mod material;
-pub mod measured;
-pub mod obj;
+pub mod materials;
+pub mod output;
+mod render;
+pub mod rng;
 pub mod scene;
-pub mod shape;
-pub mod spectrum;
-pub mod texture;
-pub mod vec3;
+pub mod spectral;
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-
-use rayon::prelude::*;
-
-use film::{Layers, Pixel};
-use integrator::Kernel;
-use scene::Scene;
-use spectrum::LambdaSampler;
-use vec3::V3;
-
-/// Render settings.
-#[derive(Clone, Copy, Debug)]
-pub struct Settings {
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// Paths per pixel.
-    pub spp: u32,
-    /// Seed: the same seed gives the same image.
-    pub seed: u64,
-    /// Longest path, in bounces.
-    pub max_depth: u32,
-    /// Run the cheapest kernel the scene allows (`false`: the general kernel).
-    pub specialise: bool,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            width: 256,
-            height: 256,
-            spp: 16,
-            seed: 1,
-            max_depth: 12,
-            specialise: true,
-        }
-    }
-}
-
-/// The render was cancelled (Ctrl-C); nothing was written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Cancelled;
-
-/// The kernel `settings` select for `scene`.
-pub fn kernel_for(scene: &Scene, settings: &Settings) -> Kernel {
-    if settings.specialise {
-        Kernel::for_features(&scene.features())
-    } else {
-        Kernel::GENERAL
-    }
-}
-
-/// Renders `scene` at `settings.spp`.
-pub fn render(scene: &Scene, settings: &Settings) -> Layers {
-    render_progressive(
-        scene,
-        settings,
-        &[settings.spp],
-        &|_| {},
-        &AtomicBool::new(false),
-    )
-    .expect("not cancelled")
-    .pop()
-    .expect("one checkpoint")
-}
-
-/// Renders `scene` once up to the largest of `checkpoints` and returns the image as it
-/// stood at each checkpoint (ascending), so noisy images at several spp cost one render.
-/// `progress` gets the number of finished rows; setting `cancel` stops the render.
-pub fn render_progressive(
-    scene: &Scene,
-    s: &Settings,
-    checkpoints: &[u32],
-    progress: &(dyn Fn(usize) + Sync),
-    cancel: &AtomicBool,
-) -> Result<Vec<Layers>, Cancelled> {
-    let mut cps: Vec<u32> = checkpoints.iter().copied().filter(|&c| c > 0).collect();
-    cps.sort_unstable();
-    cps.dedup();
-    let max = *cps.last().unwrap_or(&s.spp);
-    let kernel = kernel_for(scene, s);
-    let sampler = if kernel.emitter_wavelengths {
-        LambdaSampler::for_emitters(&scene.emitter_spectra())
-    } else {
-        LambdaSampler::Visible
-    };
-    let y_norm = temc::color::spectral::cmf_integral(360.0, 830.0)[1];
-    let cam = &scene.camera;
-    let fwd = (cam.target - cam.eye).norm();
-    let right = V3(0.0, 1.0, 0.0).cross(fwd).norm();
-    let up = fwd.cross(right);
-    let tan = (cam.fov_deg.to_radians() * 0.5).tan();
-    let aspect = s.width as f32 / s.height as f32;
-    let done = AtomicUsize::new(0);
-    let rows: Vec<Option<Vec<Vec<Pixel>>>> = (0..s.height)
-        .into_par_iter()
-        .map(|y| {
-            if cancel.load(Ordering::Relaxed) {
-                return None;
-            }
-            // One row of pixels per checkpoint.
-            let mut out = vec![Vec::with_capacity(s.width); cps.len()];
-            for x in 0..s.width {
-                let mut px = Pixel::default();
-                let mut rng = integrator::Rng::new(s.seed, (y * s.width + x) as u64);
-                let mut next = 0;
-                for k in 1..=max {
-                    let sx =
-                        (2.0 * (x as f32 + rng.uniform()) / s.width as f32 - 1.0) * tan * aspect;
-                    let sy = (1.0 - 2.0 * (y as f32 + rng.uniform()) / s.height as f32) * tan;
-                    let d = (fwd + right * sx + up * sy).norm();
-                    let wl = sampler.sample(rng.uniform());
-                    let path =
-                        integrator::trace(kernel, scene, wl, cam.eye, d, &mut rng, s.max_depth);
-                    px.add(&path, y_norm);
-                    if next < cps.len() && k == cps[next] {
-                        out[next].push(px.clone());
-                        next += 1;
-                    }
-                }
-            }
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            Some(out)
-        })
-        .collect();
-    if cancel.load(Ordering::Relaxed) {
-        return Err(Cancelled);
-    }
-    let mut per_cp: Vec<Vec<Pixel>> = vec![Vec::with_capacity(s.width * s.height); cps.len()];
-    for row in rows {
-        for (c, r) in row.ok_or(Cancelled)?.into_iter().enumerate() {
-            per_cp[c].extend(r);
-        }
-    }
-    Ok(per_cp
-        .iter()
-        .map(|px| Layers::from_pixels(s.width, s.height, px))
-        .collect())
-}
+pub use render::{kernel_for, render, render_progressive, Cancelled, Settings};

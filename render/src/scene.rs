@@ -1,22 +1,12 @@
-//! Scenes: primitives with materials behind a BVH, lights, the camera, the inspection that
-//! picks a render kernel, and the named scenes (scene files embedded in the binary).
+//! The assembled scene the integrator queries: primitives with materials behind a BVH,
+//! the lights, the camera, and the inspection that picks a render kernel.
 
-use crate::bvh::Bvh;
-use crate::material::{Material, SMOOTH};
-use crate::shape::{Prim, PrimHit};
-use crate::spectrum::Spectrum;
-use crate::vec3::V3;
-
-/// A pinhole camera.
-#[derive(Clone, Debug)]
-pub struct Camera {
-    /// Eye position.
-    pub eye: V3,
-    /// Point looked at.
-    pub target: V3,
-    /// Vertical field of view, degrees.
-    pub fov_deg: f32,
-}
+use crate::camera::Camera;
+use crate::geometry::bvh::Bvh;
+use crate::geometry::shape::{Prim, PrimHit};
+use crate::geometry::vec3::V3;
+use crate::materials::Material;
+use crate::spectral::spectrum::Spectrum;
 
 /// Everything a render needs.
 #[derive(Clone, Debug)]
@@ -170,115 +160,14 @@ impl Scene {
     }
 }
 
-/// Whether a material scatters only into one direction (no next-event estimation there,
-/// and the albedo/normal buffers look through it).
-pub fn is_specular(m: &Material, uv: (f32, f32)) -> bool {
-    match m {
-        Material::Conductor { roughness, .. } | Material::Dielectric { roughness, .. } => {
-            roughness.eval_scalar(uv.0, uv.1) < SMOOTH
-        }
-        _ => false,
-    }
-}
-
-/// A synthetic fluorescent lamp: mercury lines and narrow phosphor bands over a low floor,
-/// balanced to a cool white (chromaticity about x 0.361, y 0.357, near 4500 K).
-pub fn spiky_lamp() -> Spectrum {
-    Spectrum::Lines {
-        floor: 0.03,
-        lines: vec![
-            (404.7, 1.5, 0.5),
-            (435.8, 1.5, 1.3),
-            (487.0, 4.0, 0.5),
-            (546.1, 1.5, 2.1),
-            (578.0, 2.0, 0.5),
-            (611.0, 3.0, 1.1),
-        ],
-    }
-}
-
-/// The named scenes: name, what it stresses, scene file text.
-pub const NAMED: [(&str, &str, &str); 9] = [
-    (
-        "cornell-spiky",
-        "Cornell box under a spiky fluorescent lamp: chroma speckle on white walls",
-        include_str!("../scenes/cornell-spiky.scene"),
-    ),
-    (
-        "cornell-warm",
-        "the same box under a 3200 K blackbody (the smooth-spectrum control)",
-        include_str!("../scenes/cornell-warm.scene"),
-    ),
-    (
-        "prism",
-        "a dispersive N-SF11 prism and glass sphere under a small white lamp: rainbow caustics",
-        include_str!("../scenes/prism.scene"),
-    ),
-    (
-        "metals",
-        "gold, silver, copper and aluminium, smooth and rough, under D65",
-        include_str!("../scenes/metals.scene"),
-    ),
-    (
-        "textured",
-        "checker, stripes, noise and fine-grid textures on reflectance and roughness",
-        include_str!("../scenes/textured.scene"),
-    ),
-    (
-        "dark-room",
-        "a room lit only indirectly through a gap: dim, slowly converging",
-        include_str!("../scenes/dark-room.scene"),
-    ),
-    (
-        "firefly",
-        "a tiny, very bright lamp seen through glossy bounces: fireflies",
-        include_str!("../scenes/firefly.scene"),
-    ),
-    (
-        "laser",
-        "a 532 nm laser-line lamp beside a warm lamp: wavelength sampling on a line",
-        include_str!("../scenes/laser.scene"),
-    ),
-    (
-        "furnace",
-        "white furnace: a white sphere in a uniform environment (every pixel is 1)",
-        include_str!("../scenes/furnace.scene"),
-    ),
-];
-
-/// The names [`named`] knows.
-pub fn names() -> Vec<&'static str> {
-    NAMED.iter().map(|n| n.0).collect()
-}
-
-/// A named scene.
-pub fn named(name: &str) -> Option<Scene> {
-    let (n, _, text) = NAMED.iter().find(|n| n.0 == name)?;
-    Some(
-        crate::format::parse(text, n, None)
-            .unwrap_or_else(|e| panic!("built-in scene {n} does not parse: {e}")),
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn every_named_scene_parses_and_has_light() {
-        for (name, _, _) in NAMED {
-            let s = named(name).unwrap();
-            assert!(!s.prims.is_empty(), "{name}");
-            assert!(
-                !s.lights().is_empty() || s.environment.is_some(),
-                "{name} has no light"
-            );
-        }
-    }
+    use crate::description::named;
 
     #[test]
     fn inspection_finds_what_each_scene_calls_for() {
-        let f = |n: &str| named(n).unwrap().features();
+        let f = |n: &str| named::scene(n).unwrap().features();
         assert_eq!(f("cornell-warm"), Features::default());
         assert!(f("cornell-spiky").spiky_emitters && !f("cornell-spiky").transmission);
         assert!(f("prism").dispersion && f("prism").transmission);

@@ -98,7 +98,10 @@ fn dataset_renders_splits_and_resumes() {
         serde_json::from_str(&std::fs::read_to_string(d.join("manifest.json")).unwrap()).unwrap();
     let scenes = m["scenes"].as_array().unwrap();
     // Three generated scenes plus the named stress scenes (all but the furnace) in test.
-    assert_eq!(scenes.len(), 3 + temc_render::scene::NAMED.len() - 1);
+    assert_eq!(
+        scenes.len(),
+        3 + temc_render::description::named::NAMED.len() - 1
+    );
     for s in scenes {
         let dir = d.join(s["dir"].as_str().unwrap());
         for f in [

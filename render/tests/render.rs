@@ -1,10 +1,14 @@
 //! Correctness of the tracer on scenes with known answers.
 
-use temc_render::material::{fresnel_conductor, metal, reflect, refract, Ior, BK7, SF11};
+use temc_render::camera::Camera;
+use temc_render::description::named;
+use temc_render::geometry::shape::prism;
+use temc_render::geometry::vec3::V3;
+use temc_render::materials::ior::{Ior, BK7, SF11};
+use temc_render::materials::metal;
+use temc_render::materials::scattering::{fresnel_conductor, reflect, refract};
 use temc_render::scene::Scene;
-use temc_render::shape::prism;
-use temc_render::vec3::V3;
-use temc_render::{render, scene, Settings};
+use temc_render::{render, Settings};
 
 fn settings(w: usize, h: usize, spp: u32, seed: u64) -> Settings {
     Settings {
@@ -32,7 +36,7 @@ fn furnace(specialise: bool) {
     // A white Lambertian sphere under a uniform environment of radiance 1 is invisible:
     // every pixel's luminance is 1 (Russian roulette keeps it unbiased).
     let img = render(
-        &scene::named("furnace").unwrap(),
+        &named::scene("furnace").unwrap(),
         &Settings {
             specialise,
             ..settings(16, 16, 64, 3)
@@ -51,7 +55,7 @@ fn error_falls_as_one_over_spp() {
     // the 1/spp law (the spiky lamp's fireflies need far more pixels to average out).
     // Each seed renders once with checkpoints at 4..256 spp; the slope of log RelMSE
     // against log spp must be close to -1.
-    let sc = scene::named("cornell-warm").unwrap();
+    let sc = named::scene("cornell-warm").unwrap();
     let (w, h) = (32, 32);
     let reference = render(&sc, &settings(w, h, 8192, 99));
     let cps = [4, 16, 64, 256];
@@ -93,7 +97,7 @@ fn error_falls_as_one_over_spp() {
 
 #[test]
 fn layers_are_finite_and_deterministic() {
-    let sc = scene::named("cornell-spiky").unwrap();
+    let sc = named::scene("cornell-spiky").unwrap();
     let a = render(&sc, &settings(20, 12, 4, 7));
     let b = render(&sc, &settings(20, 12, 4, 7));
     assert_eq!(a.color, b.color, "same seed, same image");
@@ -110,13 +114,13 @@ fn layers_are_finite_and_deterministic() {
 
 #[test]
 fn exr_has_every_layer() {
-    for (name, _, _) in scene::NAMED {
+    for (name, _, _) in named::NAMED {
         exr_layers(name);
     }
 }
 
 fn exr_layers(name: &str) {
-    let sc = scene::named(name).unwrap();
+    let sc = named::scene(name).unwrap();
     let img = render(&sc, &settings(8, 6, 2, 1));
     let dir = std::env::temp_dir().join(format!("temc-render-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -172,7 +176,7 @@ fn specialised_kernels_match_the_general_one_up_to_noise() {
     // differ by. Scenes: spiky lamp (emitter wavelength sampling), dispersive prism
     // (lazy splitting), metals (no transmission code).
     for name in ["cornell-spiky", "prism", "metals"] {
-        let sc = scene::named(name).unwrap();
+        let sc = named::scene(name).unwrap();
         let (w, h, spp) = (32, 32, 256);
         let run = |specialise: bool, seed: u64| {
             render(
@@ -202,13 +206,13 @@ fn specialised_kernels_match_the_general_one_up_to_noise() {
 fn deviation(ior: Ior, l: f32) -> f32 {
     let sc = Scene::new(
         "prism",
-        vec![temc_render::material::Material::Dielectric {
+        vec![temc_render::materials::Material::Dielectric {
             ior,
-            roughness: temc_render::texture::Texture::scalar(0.0),
+            roughness: temc_render::materials::texture::Texture::scalar(0.0),
         }],
         vec![(prism(V3(0.0, 0.0, 0.0), 1.0, 1.0, 0.0), 0)],
         None,
-        scene::Camera {
+        Camera {
             eye: V3(0.0, 0.0, -3.0),
             target: V3(0.0, 0.0, 0.0),
             fov_deg: 40.0,

@@ -21,8 +21,81 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
+use temc_render::description::{format, generate, named};
+use temc_render::output::write_bytes_atomic;
+use temc_render::{render_progressive, Settings};
 
-use crate::{format, generate, render_progressive, scene, Settings};
+/// `temc-render dataset`'s options.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Generated scenes.
+    #[arg(long, default_value_t = 100)]
+    count: usize,
+    /// Image width and height.
+    #[arg(long, default_value_t = 256)]
+    size: usize,
+    /// Noisy sample counts, comma-separated.
+    #[arg(long, default_value = "4,16,64,256", value_delimiter = ',')]
+    spp: Vec<u32>,
+    /// Reference sample count.
+    #[arg(long, default_value_t = 4096)]
+    ref_spp: u32,
+    /// Also write the reference render at these sample counts (noisy targets for
+    /// Noise2Noise training), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    ref_prefix_spp: Vec<u32>,
+    /// Base seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Leave out the named stress scenes (otherwise rendered into the test split).
+    #[arg(long)]
+    no_named: bool,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Renders the data set with a progress bar and prints its cost.
+pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
+    let opts = Options {
+        count: a.count,
+        size: a.size,
+        spp: a.spp,
+        ref_spp: a.ref_spp,
+        seed: a.seed,
+        named: !a.no_named,
+        ref_prefix_spp: a.ref_prefix_spp,
+    };
+    let (size, out) = (a.size, a.out);
+    let t = Instant::now();
+    let b = crate::bar(size as u64);
+    let m = run(
+        &opts,
+        &out,
+        &|line| {
+            if b.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                b.println(line);
+            }
+        },
+        &|rows| b.set_position(rows as u64 % (size as u64 + 1)),
+        cancel,
+    )?;
+    b.finish_and_clear();
+    let n = m.scenes.len().max(1) as f64;
+    eprintln!(
+        "temc-render: {} scenes in {} ({:.0} s this run). Render cost: noisy {:.0} s ({:.1} s/scene), references {:.0} s ({:.1} s/scene).",
+        m.scenes.len(),
+        out.display(),
+        t.elapsed().as_secs_f64(),
+        m.seconds_noisy,
+        m.seconds_noisy / n,
+        m.seconds_reference,
+        m.seconds_reference / n
+    );
+    Ok(())
+}
 
 /// What to render.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -97,12 +170,6 @@ pub fn split_of(index: usize) -> &'static str {
     }
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
-}
-
 /// Renders the data set; `log` gets one line per scene. Returns the manifest.
 pub fn run(
     opts: &Options,
@@ -115,6 +182,36 @@ pub fn run(
         return Err("need --spp values > 0, --ref-spp > 0 and --size >= 8".into());
     }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    check_settings(opts, out)?;
+    let jobs = jobs(opts);
+    let mut records = Vec::new();
+    for (k, job) in jobs.iter().enumerate() {
+        let (name, split, _) = job;
+        let done = out.join(split).join(name).join("done.json");
+        if let Ok(t) = std::fs::read_to_string(&done) {
+            if let Ok(r) = serde_json::from_str::<Record>(&t) {
+                records.push(r);
+                continue;
+            }
+        }
+        let r = render_scene(opts, out, job, progress, cancel)?;
+        write_bytes_atomic(&done, serde_json::to_string_pretty(&r).unwrap().as_bytes())?;
+        log(&format!(
+            "{}/{}: {split}/{name}: noisy {:.1} s, reference {:.1} s",
+            k + 1,
+            jobs.len(),
+            r.seconds_noisy,
+            r.seconds_reference
+        ));
+        records.push(r);
+        write_manifest(opts, out, &records)?;
+    }
+    write_manifest(opts, out, &records)
+}
+
+/// Refuses to resume a data set made with other settings (the scene count may grow), then
+/// records these.
+fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
     let settings_path = out.join("dataset.json");
     if settings_path.exists() {
         let old: Options = serde_json::from_str(
@@ -132,15 +229,18 @@ pub fn run(
             ));
         }
     }
-    write_atomic(
+    write_bytes_atomic(
         &settings_path,
         serde_json::to_string_pretty(opts).unwrap().as_bytes(),
-    )?;
+    )
+}
 
-    // The named stress scenes first: the test split's hard cases are then ready early.
-    let mut jobs: Vec<(String, &'static str, String)> = Vec::new();
+/// The scenes to render, in order: (name, split, scene text). The named stress scenes
+/// come first, so the test split's hard cases are ready early.
+fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
+    let mut jobs = Vec::new();
     if opts.named {
-        for (name, _, text) in scene::NAMED {
+        for (name, _, text) in named::NAMED {
             if name != "furnace" {
                 jobs.push((format!("named-{name}"), "test", text.to_string()));
             }
@@ -154,86 +254,79 @@ pub fn run(
             generate::scene_text(seed),
         ));
     }
-    let mut records = Vec::new();
-    for (k, (name, split, text)) in jobs.iter().enumerate() {
-        let dir: PathBuf = out.join(split).join(name);
-        let done = dir.join("done.json");
-        if let Ok(t) = std::fs::read_to_string(&done) {
-            if let Ok(r) = serde_json::from_str::<Record>(&t) {
-                records.push(r);
-                continue;
-            }
-        }
-        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        write_atomic(&dir.join("scene.txt"), text.as_bytes())?;
-        let sc = format::parse(text, name, None)?;
-        let base = Settings {
-            width: opts.size,
-            height: opts.size,
-            spp: 1,
-            // Seeded by the scene's name, so the order of work does not matter.
-            seed: opts.seed ^ fnv1a(name.as_bytes()),
-            max_depth: 12,
-            specialise: true,
-        };
-        let t0 = Instant::now();
-        let noisy = render_progressive(&sc, &base, &opts.spp, progress, cancel)
-            .map_err(|_| "cancelled".to_string())?;
-        let seconds_noisy = t0.elapsed().as_secs_f64();
-        let mut sorted = opts.spp.clone();
-        sorted.sort_unstable();
-        sorted.dedup();
-        let mut files = Vec::new();
-        for (spp, img) in sorted.iter().zip(&noisy) {
-            let f = format!("spp{spp:04}.exr");
-            img.write_exr(&dir.join(&f))?;
-            files.push((*spp, f));
-        }
-        let t1 = Instant::now();
-        let ref_checkpoints = reference_checkpoints(opts);
-        let reference = render_progressive(
-            &sc,
-            &Settings {
-                seed: !base.seed,
-                ..base
-            },
-            &ref_checkpoints,
-            progress,
-            cancel,
-        )
+    jobs
+}
+
+/// Renders one scene's noisy images and reference into its folder; returns its record
+/// (the caller writes it as `done.json`).
+fn render_scene(
+    opts: &Options,
+    out: &Path,
+    (name, split, text): &(String, &'static str, String),
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Record, String> {
+    let dir: PathBuf = out.join(split).join(name);
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    write_bytes_atomic(&dir.join("scene.txt"), text.as_bytes())?;
+    let sc = format::parse(text, name, None)?;
+    let base = Settings {
+        width: opts.size,
+        height: opts.size,
+        spp: 1,
+        // Seeded by the scene's name, so the order of work does not matter.
+        seed: opts.seed ^ fnv1a(name.as_bytes()),
+        max_depth: 12,
+        specialise: true,
+    };
+    let t0 = Instant::now();
+    let noisy = render_progressive(&sc, &base, &opts.spp, progress, cancel)
         .map_err(|_| "cancelled".to_string())?;
-        let seconds_reference = t1.elapsed().as_secs_f64();
-        let mut reference_prefixes = Vec::new();
-        for (spp, img) in ref_checkpoints.iter().zip(&reference) {
-            let f = if *spp == opts.ref_spp {
-                "ref.exr".to_string()
-            } else {
-                reference_prefixes.push((*spp, format!("ref-spp{spp:04}.exr")));
-                format!("ref-spp{spp:04}.exr")
-            };
-            img.write_exr(&dir.join(&f))?;
-        }
-        let r = Record {
-            name: name.clone(),
-            split: split.to_string(),
-            dir: format!("{split}/{name}"),
-            noisy: files,
-            reference: "ref.exr".into(),
-            reference_prefixes,
-            seconds_noisy,
-            seconds_reference,
-            features: format!("{:?}", sc.features()),
-        };
-        write_atomic(&done, serde_json::to_string_pretty(&r).unwrap().as_bytes())?;
-        log(&format!(
-            "{}/{}: {split}/{name}: noisy {seconds_noisy:.1} s, reference {seconds_reference:.1} s",
-            k + 1,
-            jobs.len()
-        ));
-        records.push(r);
-        write_manifest(opts, out, &records)?;
+    let seconds_noisy = t0.elapsed().as_secs_f64();
+    let mut sorted = opts.spp.clone();
+    sorted.sort_unstable();
+    sorted.dedup();
+    let mut files = Vec::new();
+    for (spp, img) in sorted.iter().zip(&noisy) {
+        let f = format!("spp{spp:04}.exr");
+        img.write_exr(&dir.join(&f))?;
+        files.push((*spp, f));
     }
-    write_manifest(opts, out, &records)
+    let t1 = Instant::now();
+    let ref_checkpoints = reference_checkpoints(opts);
+    let reference = render_progressive(
+        &sc,
+        &Settings {
+            seed: !base.seed,
+            ..base
+        },
+        &ref_checkpoints,
+        progress,
+        cancel,
+    )
+    .map_err(|_| "cancelled".to_string())?;
+    let seconds_reference = t1.elapsed().as_secs_f64();
+    let mut reference_prefixes = Vec::new();
+    for (spp, img) in ref_checkpoints.iter().zip(&reference) {
+        let f = if *spp == opts.ref_spp {
+            "ref.exr".to_string()
+        } else {
+            reference_prefixes.push((*spp, format!("ref-spp{spp:04}.exr")));
+            format!("ref-spp{spp:04}.exr")
+        };
+        img.write_exr(&dir.join(&f))?;
+    }
+    Ok(Record {
+        name: name.clone(),
+        split: split.to_string(),
+        dir: format!("{split}/{name}"),
+        noisy: files,
+        reference: "ref.exr".into(),
+        reference_prefixes,
+        seconds_noisy,
+        seconds_reference,
+        features: format!("{:?}", sc.features()),
+    })
 }
 
 /// The reference render's checkpoints: the prefixes below `ref_spp`, then `ref_spp`
@@ -259,22 +352,14 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 fn write_manifest(opts: &Options, out: &Path, records: &[Record]) -> Result<Manifest, String> {
-    let mut layers = vec![
-        "color.R", "color.G", "color.B", "albedo.R", "albedo.G", "albedo.B", "normal.X",
-        "normal.Y", "normal.Z", "depth.Z",
-    ]
-    .into_iter()
-    .map(String::from)
-    .collect::<Vec<_>>();
-    layers.extend((0..crate::film::BANDS).map(|b| format!("spectral.b{b:02}")));
     let m = Manifest {
         options: opts.clone(),
-        layers,
+        layers: temc_color::layers::channel_names(),
         scenes: records.to_vec(),
         seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
         seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
     };
-    write_atomic(
+    write_bytes_atomic(
         &out.join("manifest.json"),
         serde_json::to_string_pretty(&m).unwrap().as_bytes(),
     )?;

@@ -7,40 +7,18 @@
 //! wavelength per path from the start (the naive way to support dispersion) and keeps
 //! every material branch.
 
-use std::f32::consts::PI;
+mod direct;
 
-use crate::material::{
-    fresnel_conductor, fresnel_dielectric, ggx_g1, mul, reflect, refract, sample_cosine,
-    sample_microfacet, Material, SMOOTH,
+use crate::geometry::vec3::V3;
+use crate::geometry::RAY_OFFSET;
+use crate::materials::scattering::{
+    fresnel_conductor, fresnel_dielectric, ggx_g1, reflect, refract, sample_microfacet,
 };
-use crate::scene::{Features, Hit, Scene};
-use crate::shape::{sample_sphere_cone, sphere_cone_pdf, Prim};
-use crate::spectrum::{Lanes, Spectrum, Wavelengths, LANES};
-use crate::vec3::V3;
-
-/// A small, fast, seedable generator (PCG32), so renders are deterministic from a seed.
-pub struct Rng(u64);
-
-impl Rng {
-    /// A stream for one (seed, pixel, sample).
-    pub fn new(seed: u64, stream: u64) -> Self {
-        let mut r = Rng(seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(stream.wrapping_mul(1442695040888963407) | 1));
-        r.uniform();
-        r
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f32 {
-        let old = self.0;
-        self.0 = old
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        let x = (((old >> 18) ^ old) >> 27) as u32;
-        let r = (old >> 59) as u32;
-        (x.rotate_right(r) >> 8) as f32 / (1u32 << 24) as f32
-    }
-}
+use crate::materials::{Material, SMOOTH};
+use crate::rng::Rng;
+use crate::scene::{Features, Scene};
+use crate::spectral::wavelengths::{Lanes, Wavelengths, LANES};
+use direct::{diffuse_bounce, light_pdf};
 
 /// Which code paths a render compiles in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,12 +96,6 @@ pub fn trace(
     )
 }
 
-const EPS: f32 = 1e-4;
-
-fn lanes(s: &Spectrum, wl: &Wavelengths) -> Lanes {
-    s.sample(wl)
-}
-
 fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     scene: &Scene,
     mut wl: Wavelengths,
@@ -149,7 +121,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     for depth in 0..max_depth {
         let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
             if let Some((env, scale)) = &scene.environment {
-                let le = lanes(env, &wl);
+                let le = env.sample(&wl);
                 for i in 0..LANES {
                     radiance[i] += beta[i] * le[i] * scale;
                 }
@@ -172,7 +144,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                     let lp = light_pdf(scene, hit.prim, prev_p, &hit, d) / n_lights.max(1.0);
                     prev_pdf * prev_pdf / (prev_pdf * prev_pdf + lp * lp)
                 };
-                let le = lanes(s, &wl);
+                let le = s.sample(&wl);
                 for i in 0..LANES {
                     radiance[i] += beta[i] * le[i] * scale * w;
                 }
@@ -282,7 +254,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
             }
         };
         prev_p = hit.p;
-        o = hit.p + if transmitted { -hit.n } else { hit.n } * EPS;
+        o = hit.p + if transmitted { -hit.n } else { hit.n } * RAY_OFFSET;
         d = wi;
         if depth >= 3 {
             let p = (0..LANES)
@@ -302,95 +274,5 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
         albedo,
         normal,
         depth: depth0,
-    }
-}
-
-/// The Lambertian lobe (of diffuse surfaces and of plastic's base): one light sample,
-/// then a cosine-weighted bounce. Updates `beta` and returns the new direction and its
-/// solid-angle density (for MIS on the next emitter hit).
-fn diffuse_bounce(
-    scene: &Scene,
-    hit: &Hit,
-    rgb: [f32; 3],
-    wl: &Wavelengths,
-    beta: &mut Lanes,
-    rng: &mut Rng,
-    radiance: &mut Lanes,
-) -> (V3, f32) {
-    let rho = Spectrum::Rgb(rgb).sample(wl);
-    next_event(scene, hit, mul(*beta, rho), wl, rng, radiance);
-    let (wi, pdf) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
-    *beta = mul(*beta, rho);
-    (wi, pdf)
-}
-
-/// Solid-angle density with which next-event estimation picks the point `hit` on light
-/// primitive `prim`, seen from `from` along `d` (before dividing by the light count).
-fn light_pdf(scene: &Scene, prim: usize, from: V3, hit: &Hit, d: V3) -> f32 {
-    match scene.prims[prim] {
-        Prim::Quad { .. } => {
-            let cos_l = hit.n.dot(-d).abs().max(1e-6);
-            hit.t * hit.t / (cos_l * scene.prims[prim].area())
-        }
-        Prim::Sphere { c, r } => sphere_cone_pdf(from, c, r),
-        Prim::Triangle { .. } => 0.0, // never sampled by next-event estimation
-    }
-}
-
-/// One light sample for a diffuse lobe with per-lane reflectance-weighted throughput
-/// `beta_rho`, MIS-weighted against cosine sampling.
-fn next_event(
-    scene: &Scene,
-    hit: &Hit,
-    beta_rho: Lanes,
-    wl: &Wavelengths,
-    rng: &mut Rng,
-    radiance: &mut Lanes,
-) {
-    let lights = scene.lights();
-    if lights.is_empty() {
-        return;
-    }
-    let n = lights.len() as f32;
-    let li = lights[((rng.uniform() * n) as usize).min(lights.len() - 1)];
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    let x = hit.p + hit.n * EPS;
-    let (wi, dist, pdf) = match scene.prims[li] {
-        Prim::Quad { p, e1, e2 } => {
-            let q = p + e1 * u1 + e2 * u2;
-            let to = q - x;
-            let dist = to.len();
-            let wi = to / dist;
-            let cos_l = e1.cross(e2).norm().dot(-wi).abs();
-            if cos_l < 1e-6 {
-                return;
-            }
-            (wi, dist, dist * dist / (cos_l * scene.prims[li].area()))
-        }
-        Prim::Sphere { c, r } => {
-            let Some((wi, pdf)) = sample_sphere_cone(x, c, r, u1, u2) else {
-                return;
-            };
-            let Some(h) = scene.prims[li].intersect(x, wi, 0.0, f32::INFINITY) else {
-                return;
-            };
-            (wi, h.t, pdf)
-        }
-        Prim::Triangle { .. } => return,
-    };
-    let cos = hit.n.dot(wi);
-    if cos <= 0.0 || scene.occluded(x, wi, dist * (1.0 - 1e-4), li) {
-        return;
-    }
-    let Material::Emitter { radiance: s, scale } = &scene.materials[scene.prim_material[li]] else {
-        return;
-    };
-    let light = pdf / n;
-    let bsdf = cos / PI;
-    let w = light * light / (light * light + bsdf * bsdf);
-    let le = lanes(s, wl);
-    let f = cos / PI / light * w * scale;
-    for i in 0..LANES {
-        radiance[i] += beta_rho[i] * le[i] * f;
     }
 }

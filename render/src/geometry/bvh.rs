@@ -1,8 +1,8 @@
 //! A bounding volume hierarchy over all primitives of a scene (binned SAH build,
 //! ordered stack traversal).
 
-use crate::shape::{Aabb, Prim, PrimHit};
-use crate::vec3::V3;
+use crate::geometry::shape::{Aabb, Prim, PrimHit};
+use crate::geometry::vec3::V3;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -236,7 +236,7 @@ fn partition(v: &mut [u32], pred: impl Fn(u32) -> bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shape::torus;
+    use crate::geometry::shape::torus;
 
     #[test]
     fn bvh_finds_the_same_hits_as_a_linear_scan() {
@@ -247,7 +247,7 @@ mod tests {
             r: 0.5,
         });
         let bvh = Bvh::build(&prims);
-        let mut rng = crate::integrator::Rng::new(3, 4);
+        let mut rng = crate::rng::Rng::new(3, 4);
         for _ in 0..2000 {
             let o = V3(
                 rng.uniform() * 6.0 - 3.0,

@@ -30,12 +30,15 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::material::{metal, metal_albedo, Ior, Material, BK7, SF11};
-use crate::scene::{spiky_lamp, Camera, Scene};
-use crate::shape::{boxed, prism, rotate_y, torus, Prim};
-use crate::spectrum::Spectrum;
-use crate::texture::{Pattern, Texture};
-use crate::vec3::V3;
+use crate::camera::Camera;
+use crate::description::obj;
+use crate::geometry::shape::{boxed, prism, rotate_y, torus, Prim};
+use crate::geometry::vec3::V3;
+use crate::materials::ior::{Ior, BK7, SF11};
+use crate::materials::texture::{Pattern, Texture};
+use crate::materials::{metal, metal_albedo, Material};
+use crate::scene::Scene;
+use crate::spectral::spectrum::Spectrum;
 
 struct Cursor<'a> {
     toks: Vec<&'a str>,
@@ -148,7 +151,7 @@ impl<'a> Cursor<'a> {
                 Ok(Spectrum::Blackbody(k))
             }
             "d65" => Ok(Spectrum::d65()),
-            "fluorescent" => Ok(spiky_lamp()),
+            "fluorescent" => Ok(Spectrum::fluorescent()),
             "laser" => {
                 let nm = self.num("the laser wavelength")?;
                 if !(380.0..=780.0).contains(&nm) {
@@ -178,6 +181,80 @@ fn emitter(spectrum: Spectrum, scale: f32) -> Res<(Spectrum, f32)> {
     Ok((spectrum, scale / lum))
 }
 
+/// The keys of a shape statement: numbers by key, the material, a mesh's file.
+struct ShapeKeys<'a> {
+    values: HashMap<&'a str, Vec<f32>>,
+    material: Option<usize>,
+    file: Option<&'a str>,
+}
+
+impl ShapeKeys<'_> {
+    fn get(&self, head: &str, k: &str) -> Res<Vec<f32>> {
+        self.values
+            .get(k)
+            .cloned()
+            .ok_or_else(|| format!("{head} needs '{k}'"))
+    }
+}
+
+fn v3(v: Vec<f32>) -> V3 {
+    V3(v[0], v[1], v[2])
+}
+
+fn positive(v: f32, what: &str) -> Res<f32> {
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{what} must be positive"))
+    }
+}
+
+/// A camera statement's keys.
+fn camera(c: &mut Cursor) -> Res<Camera> {
+    let (mut eye, mut target, mut fov) = (None, None, None);
+    while !c.done() {
+        match c.word("a key")? {
+            "eye" => eye = Some(c.v3("eye")?),
+            "target" => target = Some(c.v3("target")?),
+            "fov" => {
+                let f = c.pos_num("fov")?;
+                if f >= 179.0 {
+                    return Err(format!("fov {f} must be below 179 degrees"));
+                }
+                fov = Some(f)
+            }
+            k => return Err(format!("unknown camera key '{k}' (eye, target, fov)")),
+        }
+    }
+    let eye = eye.ok_or("camera needs 'eye'")?;
+    let target = target.ok_or("camera needs 'target'")?;
+    if (target - eye).len() <= 0.0 {
+        return Err("camera eye and target coincide".into());
+    }
+    let dir = (target - eye).norm();
+    if dir.1.abs() > 0.999 {
+        return Err("camera must not look straight up or down".into());
+    }
+    Ok(Camera {
+        eye,
+        target,
+        fov_deg: fov.unwrap_or(40.0),
+    })
+}
+
+/// An environment statement: a spectrum and its scale.
+fn environment(c: &mut Cursor) -> Res<(Spectrum, f32)> {
+    let s = c.spectrum()?;
+    let mut scale = 1.0;
+    while !c.done() {
+        match c.word("a key")? {
+            "scale" => scale = c.pos_num("scale")?,
+            k => return Err(format!("unknown environment key '{k}' (scale)")),
+        }
+    }
+    emitter(s, scale)
+}
+
 struct Builder<'p> {
     materials: Vec<Material>,
     names: HashMap<String, usize>,
@@ -191,48 +268,8 @@ impl Builder<'_> {
     fn statement(&mut self, c: &mut Cursor) -> Res<()> {
         let head = c.word("a statement")?;
         match head {
-            "camera" => {
-                let (mut eye, mut target, mut fov) = (None, None, None);
-                while !c.done() {
-                    match c.word("a key")? {
-                        "eye" => eye = Some(c.v3("eye")?),
-                        "target" => target = Some(c.v3("target")?),
-                        "fov" => {
-                            let f = c.pos_num("fov")?;
-                            if f >= 179.0 {
-                                return Err(format!("fov {f} must be below 179 degrees"));
-                            }
-                            fov = Some(f)
-                        }
-                        k => return Err(format!("unknown camera key '{k}' (eye, target, fov)")),
-                    }
-                }
-                let eye = eye.ok_or("camera needs 'eye'")?;
-                let target = target.ok_or("camera needs 'target'")?;
-                if (target - eye).len() <= 0.0 {
-                    return Err("camera eye and target coincide".into());
-                }
-                let dir = (target - eye).norm();
-                if dir.1.abs() > 0.999 {
-                    return Err("camera must not look straight up or down".into());
-                }
-                self.camera = Some(Camera {
-                    eye,
-                    target,
-                    fov_deg: fov.unwrap_or(40.0),
-                });
-            }
-            "environment" => {
-                let s = c.spectrum()?;
-                let mut scale = 1.0;
-                while !c.done() {
-                    match c.word("a key")? {
-                        "scale" => scale = c.pos_num("scale")?,
-                        k => return Err(format!("unknown environment key '{k}' (scale)")),
-                    }
-                }
-                self.environment = Some(emitter(s, scale)?);
-            }
+            "camera" => self.camera = Some(camera(c)?),
+            "environment" => self.environment = Some(environment(c)?),
             "material" => {
                 let name = c.word("a material name")?;
                 if self.names.contains_key(name) {
@@ -243,123 +280,11 @@ impl Builder<'_> {
                 self.materials.push(m);
             }
             "sphere" | "quad" | "box" | "prism" | "torus" | "mesh" => {
-                let mut kv: HashMap<&str, Vec<f32>> = HashMap::new();
-                let mut material = None;
-                let mut file = None;
-                while !c.done() {
-                    let key = c.word("a key")?;
-                    let arity = match (head, key) {
-                        (_, "material") => {
-                            let n = c.word("a material name")?;
-                            material = Some(
-                                *self
-                                    .names
-                                    .get(n)
-                                    .ok_or_else(|| format!("unknown material '{n}'"))?,
-                            );
-                            continue;
-                        }
-                        ("mesh", "file") => {
-                            file = Some(c.word("a file name")?);
-                            continue;
-                        }
-                        ("sphere", "center") | ("prism", "center") | ("torus", "center") => 3,
-                        ("sphere", "radius") => 1,
-                        ("quad", "corner" | "edge1" | "edge2") => 3,
-                        ("box", "min" | "max") => 3,
-                        ("prism", "size" | "height") => 1,
-                        ("torus", "radii") => 2,
-                        ("mesh", "translate") => 3,
-                        ("mesh", "scale") => 1,
-                        ("box" | "prism" | "mesh", "rotate") | ("torus", "tilt") => 1,
-                        _ => return Err(format!("unknown {head} key '{key}'")),
-                    };
-                    let vals = (0..arity)
-                        .map(|_| c.num(key))
-                        .collect::<Res<Vec<f32>>>()?;
-                    if kv.insert(key, vals).is_some() {
-                        return Err(format!("'{key}' given twice"));
-                    }
-                }
-                let material = material.ok_or_else(|| format!("{head} needs 'material'"))?;
-                let get = |k: &str| {
-                    kv.get(k)
-                        .cloned()
-                        .ok_or_else(|| format!("{head} needs '{k}'"))
-                };
-                let opt = |k: &str, d: f32| kv.get(k).map_or(d, |v| v[0]);
-                let v3 = |v: Vec<f32>| V3(v[0], v[1], v[2]);
-                let positive = |v: f32, what: &str| {
-                    if v > 0.0 {
-                        Ok(v)
-                    } else {
-                        Err(format!("{what} must be positive"))
-                    }
-                };
-                let prims = match head {
-                    "sphere" => vec![Prim::Sphere {
-                        c: v3(get("center")?),
-                        r: positive(get("radius")?[0], "radius")?,
-                    }],
-                    "quad" => {
-                        let (e1, e2) = (v3(get("edge1")?), v3(get("edge2")?));
-                        if e1.cross(e2).len() <= 0.0 {
-                            return Err("quad edges are parallel".into());
-                        }
-                        vec![Prim::Quad {
-                            p: v3(get("corner")?),
-                            e1,
-                            e2,
-                        }]
-                    }
-                    "box" => {
-                        let (lo, hi) = (v3(get("min")?), v3(get("max")?));
-                        if !(lo.0 < hi.0 && lo.1 < hi.1 && lo.2 < hi.2) {
-                            return Err("box min must be below max on every axis".into());
-                        }
-                        boxed(lo, hi, opt("rotate", 0.0))
-                    }
-                    "prism" => prism(
-                        v3(get("center")?),
-                        positive(get("size")?[0], "size")?,
-                        positive(get("height")?[0], "height")?,
-                        opt("rotate", 0.0),
-                    ),
-                    "torus" => {
-                        let r = get("radii")?;
-                        if !(r[0] > r[1] && r[1] > 0.0) {
-                            return Err("torus radii must satisfy MAJOR > MINOR > 0".into());
-                        }
-                        torus(v3(get("center")?), r[0], r[1], opt("tilt", 0.0))
-                    }
-                    _ => {
-                        let file = file.ok_or("mesh needs 'file'")?;
-                        let dir = self
-                            .dir
-                            .ok_or("mesh files need the scene to come from a file")?;
-                        let path = dir.join(file);
-                        let text = std::fs::read_to_string(&path)
-                            .map_err(|e| format!("{}: {e}", path.display()))?;
-                        let tris = crate::obj::parse(&text, &path.display().to_string())?;
-                        let s = positive(opt("scale", 1.0), "scale")?;
-                        let rot = opt("rotate", 0.0);
-                        let t = kv.get("translate").cloned().map_or(V3::default(), v3);
-                        let xf = |p: V3| rotate_y(p * s, rot) + t;
-                        tris.into_iter()
-                            .map(|p| match p {
-                                Prim::Triangle { p0, e1, e2 } => {
-                                    let a = xf(p0);
-                                    Prim::Triangle {
-                                        p0: a,
-                                        e1: xf(p0 + e1) - a,
-                                        e2: xf(p0 + e2) - a,
-                                    }
-                                }
-                                p => p,
-                            })
-                            .collect()
-                    }
-                };
+                let keys = self.shape_keys(head, c)?;
+                let material = keys
+                    .material
+                    .ok_or_else(|| format!("{head} needs 'material'"))?;
+                let prims = self.shape(head, &keys)?;
                 self.objects.push((prims, material));
             }
             h => {
@@ -369,6 +294,128 @@ impl Builder<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Reads a shape statement's keys; each key has a fixed number of values.
+    fn shape_keys<'a>(&self, head: &str, c: &mut Cursor<'a>) -> Res<ShapeKeys<'a>> {
+        let mut keys = ShapeKeys {
+            values: HashMap::new(),
+            material: None,
+            file: None,
+        };
+        while !c.done() {
+            let key = c.word("a key")?;
+            let arity = match (head, key) {
+                (_, "material") => {
+                    let n = c.word("a material name")?;
+                    keys.material = Some(
+                        *self
+                            .names
+                            .get(n)
+                            .ok_or_else(|| format!("unknown material '{n}'"))?,
+                    );
+                    continue;
+                }
+                ("mesh", "file") => {
+                    keys.file = Some(c.word("a file name")?);
+                    continue;
+                }
+                ("sphere", "center") | ("prism", "center") | ("torus", "center") => 3,
+                ("sphere", "radius") => 1,
+                ("quad", "corner" | "edge1" | "edge2") => 3,
+                ("box", "min" | "max") => 3,
+                ("prism", "size" | "height") => 1,
+                ("torus", "radii") => 2,
+                ("mesh", "translate") => 3,
+                ("mesh", "scale") => 1,
+                ("box" | "prism" | "mesh", "rotate") | ("torus", "tilt") => 1,
+                _ => return Err(format!("unknown {head} key '{key}'")),
+            };
+            let vals = (0..arity).map(|_| c.num(key)).collect::<Res<Vec<f32>>>()?;
+            if keys.values.insert(key, vals).is_some() {
+                return Err(format!("'{key}' given twice"));
+            }
+        }
+        Ok(keys)
+    }
+
+    /// The primitives of a shape statement whose keys are read.
+    fn shape(&self, head: &str, keys: &ShapeKeys) -> Res<Vec<Prim>> {
+        let get = |k: &str| keys.get(head, k);
+        let opt = |k: &str, d: f32| keys.values.get(k).map_or(d, |v| v[0]);
+        Ok(match head {
+            "sphere" => vec![Prim::Sphere {
+                c: v3(get("center")?),
+                r: positive(get("radius")?[0], "radius")?,
+            }],
+            "quad" => {
+                let (e1, e2) = (v3(get("edge1")?), v3(get("edge2")?));
+                if e1.cross(e2).len() <= 0.0 {
+                    return Err("quad edges are parallel".into());
+                }
+                vec![Prim::Quad {
+                    p: v3(get("corner")?),
+                    e1,
+                    e2,
+                }]
+            }
+            "box" => {
+                let (lo, hi) = (v3(get("min")?), v3(get("max")?));
+                if !(lo.0 < hi.0 && lo.1 < hi.1 && lo.2 < hi.2) {
+                    return Err("box min must be below max on every axis".into());
+                }
+                boxed(lo, hi, opt("rotate", 0.0))
+            }
+            "prism" => prism(
+                v3(get("center")?),
+                positive(get("size")?[0], "size")?,
+                positive(get("height")?[0], "height")?,
+                opt("rotate", 0.0),
+            ),
+            "torus" => {
+                let r = get("radii")?;
+                if !(r[0] > r[1] && r[1] > 0.0) {
+                    return Err("torus radii must satisfy MAJOR > MINOR > 0".into());
+                }
+                torus(v3(get("center")?), r[0], r[1], opt("tilt", 0.0))
+            }
+            _ => self.mesh(keys, &opt)?,
+        })
+    }
+
+    /// A mesh statement's triangles: the OBJ file next to the scene file, scaled, turned
+    /// and moved.
+    fn mesh(&self, keys: &ShapeKeys, opt: &dyn Fn(&str, f32) -> f32) -> Res<Vec<Prim>> {
+        let file = keys.file.ok_or("mesh needs 'file'")?;
+        let dir = self
+            .dir
+            .ok_or("mesh files need the scene to come from a file")?;
+        let path = dir.join(file);
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let tris = obj::parse(&text, &path.display().to_string())?;
+        let s = positive(opt("scale", 1.0), "scale")?;
+        let rot = opt("rotate", 0.0);
+        let t = keys
+            .values
+            .get("translate")
+            .cloned()
+            .map_or(V3::default(), v3);
+        let xf = |p: V3| rotate_y(p * s, rot) + t;
+        Ok(tris
+            .into_iter()
+            .map(|p| match p {
+                Prim::Triangle { p0, e1, e2 } => {
+                    let a = xf(p0);
+                    Prim::Triangle {
+                        p0: a,
+                        e1: xf(p0 + e1) - a,
+                        e2: xf(p0 + e2) - a,
+                    }
+                }
+                p => p,
+            })
+            .collect())
     }
 
     fn material(&mut self, c: &mut Cursor) -> Res<Material> {

@@ -3,7 +3,7 @@
 
 use std::f32::consts::PI;
 
-use crate::vec3::V3;
+use crate::geometry::vec3::V3;
 
 /// A primitive the BVH holds.
 #[derive(Clone, Copy, Debug)]
@@ -358,7 +358,7 @@ pub fn sample_sphere_cone(p: V3, c: V3, r: f32, u1: f32, u2: f32) -> Option<(V3,
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let phi = 2.0 * PI * u2;
     let w = to / d2.sqrt();
-    let (t, b) = crate::vec3::basis(w);
+    let (t, b) = crate::geometry::vec3::basis(w);
     let dir = (t * (sin * phi.cos()) + b * (sin * phi.sin()) + w * cos).norm();
     Some((dir, sphere_cone_pdf(p, c, r)))
 }

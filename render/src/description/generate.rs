@@ -4,7 +4,7 @@
 
 use std::fmt::Write;
 
-use crate::integrator::Rng;
+use crate::rng::Rng;
 
 struct Gen(Rng);
 
@@ -166,7 +166,44 @@ pub fn scene_text(seed: u64) -> String {
             g.range(4.0, 30.0) / lights as f32
         );
     }
+    let shell = Shell {
+        w,
+        d,
+        h,
+        x0,
+        z0,
+        lights,
+    };
     if room {
+        g.room(&mut s, &shell);
+    } else {
+        g.open(&mut s, &shell);
+    }
+    g.objects(&mut s, w, d);
+    s
+}
+
+/// The layout's size (width, depth, height, the floor's corner) and its lamp count.
+struct Shell {
+    w: f32,
+    d: f32,
+    h: f32,
+    x0: f32,
+    z0: f32,
+    lights: usize,
+}
+
+impl Gen {
+    /// A closed room: ceiling and four walls, lit by ceiling panels.
+    fn room(&mut self, s: &mut String, b: &Shell) {
+        let Shell {
+            w,
+            d,
+            h,
+            x0,
+            z0,
+            lights,
+        } = *b;
         let _ = writeln!(
             s,
             "quad corner {x0:.3} {h:.3} {z0:.3} edge1 {w:.3} 0 0 edge2 0 0 {d:.3} material wall"
@@ -190,8 +227,8 @@ pub fn scene_text(seed: u64) -> String {
             "quad corner {x0:.3} 0 {z0:.3} edge1 {w:.3} 0 0 edge2 0 {h:.3} 0 material wall"
         );
         for l in 0..lights {
-            let (lw, ld) = (g.range(0.2, 1.2), g.range(0.2, 1.2));
-            let (lx, lz) = (g.range(-0.35, 0.35) * w, g.range(-0.2, 0.4) * d);
+            let (lw, ld) = (self.range(0.2, 1.2), self.range(0.2, 1.2));
+            let (lx, lz) = (self.range(-0.35, 0.35) * w, self.range(-0.2, 0.4) * d);
             let _ = writeln!(
                 s,
                 "quad corner {:.3} {:.3} {:.3} edge1 {lw:.3} 0 0 edge2 0 0 {ld:.3} material lamp{l}",
@@ -200,74 +237,88 @@ pub fn scene_text(seed: u64) -> String {
                 lz - ld / 2.0
             );
         }
-    } else {
-        let sky = if g.chance(0.5) {
-            format!("blackbody {:.0}", g.range(6000.0, 15000.0))
+    }
+
+    /// An open floor under a sky, with a back wall and lamps above.
+    fn open(&mut self, s: &mut String, b: &Shell) {
+        let Shell {
+            w,
+            h,
+            x0,
+            z0,
+            lights,
+            ..
+        } = *b;
+        let sky = if self.chance(0.5) {
+            format!("blackbody {:.0}", self.range(6000.0, 15000.0))
         } else {
             "d65".into()
         };
-        let _ = writeln!(s, "environment {sky} scale {:.3}", g.range(0.05, 0.8));
+        let _ = writeln!(s, "environment {sky} scale {:.3}", self.range(0.05, 0.8));
         let _ = writeln!(
             s,
             "quad corner {x0:.3} 0 {:.3} edge1 {w:.3} 0 0 edge2 0 {h:.3} 0 material wall",
             -z0
         );
         for l in 0..lights {
-            if g.chance(0.5) {
+            if self.chance(0.5) {
                 let _ = writeln!(
                     s,
                     "sphere center {:.3} {:.3} {:.3} radius {:.3} material lamp{l}",
-                    g.range(-1.5, 1.5),
-                    g.range(1.5, 3.0),
-                    g.range(-1.0, 1.5),
-                    g.range(0.05, 0.3)
+                    self.range(-1.5, 1.5),
+                    self.range(1.5, 3.0),
+                    self.range(-1.0, 1.5),
+                    self.range(0.05, 0.3)
                 );
             } else {
-                let sz = g.range(0.3, 1.5);
+                let sz = self.range(0.3, 1.5);
                 let _ = writeln!(
                     s,
                     "quad corner {:.3} {:.3} {:.3} edge1 {sz:.3} 0 0 edge2 0 0 {sz:.3} material lamp{l}",
-                    g.range(-1.5, 1.0),
-                    g.range(2.0, 3.5),
-                    g.range(-1.0, 1.0)
+                    self.range(-1.5, 1.0),
+                    self.range(2.0, 3.5),
+                    self.range(-1.0, 1.0)
                 );
             }
         }
     }
-    let n = 2 + (g.u() * 5.0) as usize;
-    for i in 0..n {
-        let m = g.material(&format!("m{i}"));
-        let _ = writeln!(s, "{m}");
-        let (x, z) = (g.range(-0.3, 0.3) * w, g.range(-0.1, 0.3) * d);
-        let size = g.range(0.2, 0.6);
-        let shape = match g.u() {
-            v if v < 0.4 => format!("sphere center {x:.3} {size:.3} {z:.3} radius {size:.3}"),
-            v if v < 0.65 => format!(
-                "box min {:.3} 0 {:.3} max {:.3} {:.3} {:.3} rotate {:.1}",
-                x - size,
-                z - size,
-                x + size,
-                g.range(0.3, 1.5),
-                z + size,
-                g.range(0.0, 90.0)
-            ),
-            v if v < 0.85 => format!(
-                "prism center {x:.3} 0 {z:.3} size {:.3} height {:.3} rotate {:.1}",
-                2.0 * size,
-                g.range(0.3, 1.2),
-                g.range(0.0, 180.0)
-            ),
-            _ => format!(
-                "torus center {x:.3} {:.3} {z:.3} radii {:.3} {:.3} tilt {:.1}",
-                size + 0.2,
-                size,
-                size * 0.35,
-                g.range(0.0, 90.0)
-            ),
-        };
-        let _ = writeln!(s, "{shape} material m{i}");
+
+    /// Two to six objects with random materials in the middle of the floor.
+    fn objects(&mut self, s: &mut String, w: f32, d: f32) {
+        let n = 2 + (self.u() * 5.0) as usize;
+        for i in 0..n {
+            let m = self.material(&format!("m{i}"));
+            let _ = writeln!(s, "{m}");
+            let (x, z) = (self.range(-0.3, 0.3) * w, self.range(-0.1, 0.3) * d);
+            let size = self.range(0.2, 0.6);
+            let shape = match self.u() {
+                v if v < 0.4 => format!("sphere center {x:.3} {size:.3} {z:.3} radius {size:.3}"),
+                v if v < 0.65 => format!(
+                    "box min {:.3} 0 {:.3} max {:.3} {:.3} {:.3} rotate {:.1}",
+                    x - size,
+                    z - size,
+                    x + size,
+                    self.range(0.3, 1.5),
+                    z + size,
+                    self.range(0.0, 90.0)
+                ),
+                v if v < 0.85 => format!(
+                    "prism center {x:.3} 0 {z:.3} size {:.3} height {:.3} rotate {:.1}",
+                    2.0 * size,
+                    self.range(0.3, 1.2),
+                    self.range(0.0, 180.0)
+                ),
+                _ => format!(
+                    "torus center {x:.3} {:.3} {z:.3} radii {:.3} {:.3} tilt {:.1}",
+                    size + 0.2,
+                    size,
+                    size * 0.35,
+                    self.range(0.0, 90.0)
+                ),
+            };
+            let _ = writeln!(s, "{shape} material m{i}");
+        }
     }
-    s
 }
 
 #[cfg(test)]
@@ -280,7 +331,8 @@ mod tests {
         for seed in 0..200 {
             let t = scene_text(seed);
             assert_eq!(t, scene_text(seed));
-            let s = crate::format::parse(&t, "gen", None).unwrap_or_else(|e| panic!("{e}\n{t}"));
+            let s = crate::description::format::parse(&t, "gen", None)
+                .unwrap_or_else(|e| panic!("{e}\n{t}"));
             let f = s.features();
             kinds.insert((f.dispersion, f.transmission, f.spiky_emitters, f.glossy));
         }

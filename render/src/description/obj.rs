@@ -1,8 +1,8 @@
 //! A Wavefront OBJ reader for triangle meshes: vertices and faces only (polygons are
 //! triangulated as fans; normals and texture coordinates are ignored).
 
-use crate::shape::Prim;
-use crate::vec3::V3;
+use crate::geometry::shape::Prim;
+use crate::geometry::vec3::V3;
 
 /// Parses OBJ text into triangles; `name` prefixes error messages with the line number.
 pub fn parse(text: &str, name: &str) -> Result<Vec<Prim>, String> {

@@ -7,9 +7,79 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use temc::filter::{Device, Filter, Quality};
+use temc_render::film::{relmse, Layers};
+use temc_render::output::write_atomic;
+use temc_render::{render_progressive, Settings};
 
-use crate::film::Layers;
-use crate::{render_progressive, scene, Settings};
+/// `temc-render demo`'s options.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Named scene.
+    #[arg(long, default_value = "cornell-spiky")]
+    scene: String,
+    /// Image size, WxH.
+    #[arg(long, default_value = "192x192")]
+    size: String,
+    /// Paths per pixel of the noisy render.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Paths per pixel of the reference.
+    #[arg(long, default_value_t = 256)]
+    ref_spp: u32,
+    /// Built-in model: fast, balanced or high.
+    #[arg(long, default_value = "balanced")]
+    quality: String,
+    /// Output folder.
+    #[arg(long, default_value = "demo-out")]
+    out: PathBuf,
+}
+
+/// Runs the demo and prints what it measured.
+pub fn main(a: Args) -> Result<(), String> {
+    let quality = match a.quality.as_str() {
+        "fast" => Quality::Fast,
+        "balanced" => Quality::Balanced,
+        "high" => Quality::High,
+        q => return Err(format!("--quality {q:?}: expected fast, balanced or high")),
+    };
+    let o = Options {
+        scene: a.scene,
+        size: crate::parse_size(&a.size)?,
+        spp: a.spp,
+        ref_spp: a.ref_spp,
+        quality,
+        out: a.out,
+    };
+    let t = Instant::now();
+    let r = run(&o, &|line| eprintln!("temc-render demo: {line}"))?;
+    println!(
+        "{} {}x{}: rendered {} spp in {:.2} s, reference {} spp in {:.1} s",
+        o.scene, o.size.0, o.size.1, o.spp, r.render_s, o.ref_spp, r.reference_s
+    );
+    println!(
+        "denoised with the built-in TEMC-2 ({:?}) in {:.3} s on {} threads",
+        o.quality, r.denoise_s, r.threads
+    );
+    let ratio = r.noisy_relmse / r.denoised_relmse.max(1e-30);
+    println!(
+        "RelMSE against the reference: noisy {:.4e}, denoised {:.4e} ({})",
+        r.noisy_relmse,
+        r.denoised_relmse,
+        if ratio >= 1.0 {
+            format!("{ratio:.1}x lower")
+        } else {
+            format!("{:.1}x higher: the denoiser made it worse", 1.0 / ratio)
+        }
+    );
+    for f in &r.files {
+        println!("wrote {}", f.display());
+    }
+    eprintln!(
+        "temc-render demo: done in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
 
 /// What the demo renders and how it denoises.
 #[derive(Clone, Debug)]
@@ -60,26 +130,9 @@ pub struct Report {
     pub files: Vec<PathBuf>,
 }
 
-/// Relative MSE with eps 0.01, the data set's error measure (training/temc_train/evaluate.py).
-pub fn relmse(x: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
-    let sum: f64 = x
-        .iter()
-        .zip(reference)
-        .flat_map(|(a, r)| (0..3).map(move |c| (a[c] as f64, r[c] as f64)))
-        .map(|(a, r)| (a - r).powi(2) / (r * r + 0.01))
-        .sum();
-    sum / (3 * x.len().max(1)) as f64
-}
-
 /// Runs the demo; `progress` gets a line per stage.
 pub fn run(o: &Options, progress: &dyn Fn(&str)) -> Result<Report, String> {
-    let sc = scene::named(&o.scene).ok_or_else(|| {
-        format!(
-            "unknown scene {:?} (known: {})",
-            o.scene,
-            scene::names().join(", ")
-        )
-    })?;
+    let sc = crate::named_scene(&o.scene)?;
     if o.spp == 0 || o.ref_spp == 0 {
         return Err("sample counts must be at least 1".into());
     }
@@ -131,7 +184,8 @@ pub fn run(o: &Options, progress: &dyn Fn(&str)) -> Result<Report, String> {
         w,
         h,
         &[&noisy.color, &clean.color, &reference.color],
-        exposure(&reference.color),
+        // The denoiser's automatic exposure, so the picture is exposed as temc sees it.
+        temc::color::auto_input_scale(reference.color.iter().copied()),
     )?;
     files.push(png);
     Ok(Report {
@@ -169,17 +223,6 @@ fn denoise(l: &Layers, quality: Quality) -> temc::Result<(Vec<[f32; 3]>, f64, us
     ))
 }
 
-/// A scale that puts the image's log-average luminance at mid grey.
-fn exposure(rgb: &[[f32; 3]]) -> f32 {
-    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-    let mean_log = rgb
-        .iter()
-        .map(|p| (lum(p).max(0.0) as f64 + 1e-4).ln())
-        .sum::<f64>()
-        / rgb.len().max(1) as f64;
-    (0.18 / mean_log.exp()) as f32
-}
-
 /// Writes the images side by side as an 8-bit sRGB PNG (Reinhard tone mapping).
 fn write_strip(
     path: &Path,
@@ -207,36 +250,20 @@ fn write_strip(
             }
         }
     }
-    let tmp = path.with_extension("png.tmp");
-    let write = || -> Result<(), Box<dyn std::error::Error>> {
-        let file = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+    write_atomic(path, |tmp| -> Result<(), Box<dyn std::error::Error>> {
+        let file = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         let mut enc = png::Encoder::new(file, (w * n) as u32, h as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
         enc.write_header()?.write_image_data(&px)?;
         Ok(())
-    };
-    write()
-        .and_then(|()| Ok(std::fs::rename(&tmp, path)?))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            format!("{}: {e}", path.display())
-        })
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn relmse_is_zero_on_equal_images_and_relative() {
-        let r = vec![[1.0f32, 2.0, 0.0]; 4];
-        assert_eq!(relmse(&r, &r), 0.0);
-        let x = vec![[1.1f32, 2.2, 0.1]; 4];
-        let want = (0.01 / 1.01 + 0.04 / 4.01 + 0.01 / 0.01) / 3.0;
-        assert!((relmse(&x, &r) - want).abs() < 1e-6);
-    }
 
     fn tiny(name: &str) -> (Options, PathBuf) {
         let out = std::env::temp_dir().join(format!("temc-demo-{name}-{}", std::process::id()));

@@ -1,0 +1,208 @@
+//! `temc-render`: render scenes to multi-layer EXR, generate random scenes, render data
+//! sets, run the denoising demo, and benchmark the renderer.
+//!
+//! The applications are modules of this binary, not of the tracer library: [`dataset`],
+//! [`demo`] (the one that needs the denoiser, temc) and [`bench`].
+
+mod bench;
+mod dataset;
+mod demo;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use temc_render::description::{format, generate, named};
+use temc_render::scene::Scene;
+use temc_render::{render_progressive, Settings};
+
+#[derive(Parser)]
+#[command(
+    name = "temc-render",
+    version,
+    about = "Spectral path tracer for temc's data"
+)]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a named scene or a scene file to one multi-layer EXR.
+    Render(RenderArgs),
+    /// The whole job on defaults: render a spectral scene at low spp and a reference,
+    /// denoise with temc's built-in model, write EXR + PNG, print error and time.
+    Demo(demo::Args),
+    /// List the named scenes.
+    Scenes,
+    /// Print a random scene file.
+    Generate {
+        /// Seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
+    /// Render a data set of noisy/reference pairs (resumable).
+    Dataset(dataset::Args),
+    /// Time the specialised kernels against the general one on every named scene, and
+    /// the throughput on the Cornell box; writes a Markdown report.
+    Bench(bench::Args),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Named scene (see `temc-render scenes`).
+    #[arg(long, conflicts_with = "file")]
+    scene: Option<String>,
+    /// Scene file (format: docs/render.md).
+    #[arg(long)]
+    file: Option<PathBuf>,
+    /// Paths per pixel.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Image size, WxH.
+    #[arg(long, default_value = "256x256")]
+    size: String,
+    /// Seed: the same seed gives the same image.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Longest path, in bounces.
+    #[arg(long, default_value_t = 12)]
+    max_depth: u32,
+    /// Run the general kernel instead of the one specialised for the scene.
+    #[arg(long)]
+    general: bool,
+    /// Output EXR.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+        {
+            eprintln!("temc-render: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    // Ctrl-C stops the render between rows; outputs are written atomically, so nothing
+    // partial is left behind.
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130); // second Ctrl-C: leave now
+            }
+        });
+    }
+    match run(cli.command, &cancel) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if cancel.load(Ordering::SeqCst) => {
+            eprintln!("temc-render: interrupted ({e}); no partial output written");
+            ExitCode::from(130)
+        }
+        Err(e) => {
+            eprintln!("temc-render: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command, cancel: &AtomicBool) -> Result<(), String> {
+    match command {
+        Command::Scenes => {
+            for (n, what, _) in named::NAMED {
+                println!("{n:14} {what}");
+            }
+            Ok(())
+        }
+        Command::Generate { seed } => {
+            print!("{}", generate::scene_text(seed));
+            Ok(())
+        }
+        Command::Render(args) => render(args, cancel),
+        Command::Demo(args) => demo::main(args),
+        Command::Dataset(args) => dataset::main(args, cancel),
+        Command::Bench(args) => bench::main(args, cancel),
+    }
+}
+
+/// `temc-render render`.
+fn render(a: RenderArgs, cancel: &AtomicBool) -> Result<(), String> {
+    let sc = load_scene(a.scene, a.file)?;
+    let (w, h) = parse_size(&a.size)?;
+    if a.spp == 0 {
+        return Err("--spp must be at least 1".into());
+    }
+    let settings = Settings {
+        width: w,
+        height: h,
+        spp: a.spp,
+        seed: a.seed,
+        max_depth: a.max_depth,
+        specialise: !a.general,
+    };
+    let kernel = temc_render::kernel_for(&sc, &settings);
+    let b = bar(h as u64);
+    let t = Instant::now();
+    let layers = render_progressive(
+        &sc,
+        &settings,
+        &[a.spp],
+        &|rows| b.set_position(rows as u64),
+        cancel,
+    )
+    .map_err(|_| "cancelled".to_string())?
+    .pop()
+    .expect("one checkpoint");
+    b.finish_and_clear();
+    let secs = t.elapsed().as_secs_f64();
+    layers.write_exr(&a.output)?;
+    eprintln!(
+        "temc-render: {} {w}x{h} at {} spp in {secs:.2} s ({:.2} M paths/s, {kernel:?}) -> {}",
+        sc.name,
+        a.spp,
+        (w * h) as f64 * a.spp as f64 / secs / 1e6,
+        a.output.display()
+    );
+    Ok(())
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal.
+fn bar(len: u64) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar
+}
+
+fn parse_size(size: &str) -> Result<(usize, usize), String> {
+    size.split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
+        .filter(|&(w, h)| w > 0 && h > 0 && w <= 16384 && h <= 16384)
+        .ok_or_else(|| format!("--size {size:?}: expected WxH, e.g. 256x256"))
+}
+
+fn load_scene(name: Option<String>, file: Option<PathBuf>) -> Result<Scene, String> {
+    match (name, file) {
+        (_, Some(f)) => format::load(&f),
+        (n, None) => named_scene(&n.unwrap_or_else(|| "cornell-spiky".into())),
+    }
+}
+
+/// A named scene, or an error that lists the names.
+fn named_scene(n: &str) -> Result<Scene, String> {
+    named::scene(n)
+        .ok_or_else(|| format!("unknown scene {n:?} (known: {})", named::names().join(", ")))
+}

@@ -1,0 +1,8 @@
+//! The scene description, the input side of rendering: the scene file format, OBJ meshes,
+//! random scenes from a seed, and the named scenes. All of them end in [`format::parse`],
+//! which assembles a [`crate::scene::Scene`].
+
+pub mod format;
+pub mod generate;
+pub mod named;
+pub mod obj;

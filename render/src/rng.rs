@@ -1,0 +1,26 @@
+//! A small, fast, seedable generator (PCG32): renders and generated scenes are
+//! deterministic from a seed.
+
+/// A PCG32 stream.
+pub struct Rng(u64);
+
+impl Rng {
+    /// A stream for one (seed, pixel, sample).
+    pub fn new(seed: u64, stream: u64) -> Self {
+        let mut r = Rng(seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(stream.wrapping_mul(1442695040888963407) | 1));
+        r.uniform();
+        r
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f32 {
+        let old = self.0;
+        self.0 = old
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let x = (((old >> 18) ^ old) >> 27) as u32;
+        let r = (old >> 59) as u32;
+        (x.rotate_right(r) >> 8) as f32 / (1u32 << 24) as f32
+    }
+}

@@ -1,0 +1,118 @@
+//! How a render picks its wavelengths: the visible-importance density for smooth
+//! emitters, or a table built from the emitters' spectra so line spectra get samples.
+
+use crate::spectral::spectrum::Spectrum;
+use crate::spectral::wavelengths::{visible_pdf, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, LANES};
+
+/// How a render picks its wavelengths.
+#[derive(Clone, Debug)]
+pub enum LambdaSampler {
+    /// The visible-importance density: right for smooth emitters.
+    Visible,
+    /// A tabulated density, half visible-importance and half the emitters' spectra
+    /// weighted by the colour matching functions: spiky lamps and lasers then get samples
+    /// on their lines. Piecewise constant over `BIN` nm bins.
+    Table {
+        /// Density per bin (per nm).
+        pdf: Vec<f32>,
+        /// Cumulative distribution at bin ends (last = 1).
+        cdf: Vec<f32>,
+    },
+}
+
+const BIN: f32 = 0.25;
+
+impl LambdaSampler {
+    /// A sampler for a scene whose emitters have these spectra.
+    pub fn for_emitters(emitters: &[&Spectrum]) -> Self {
+        let n = ((LAMBDA_MAX - LAMBDA_MIN) / BIN) as usize;
+        let centre = |i: usize| LAMBDA_MIN + (i as f32 + 0.5) * BIN;
+        let mut mix = vec![0.0f64; n];
+        for s in emitters {
+            let w: Vec<f64> = (0..n)
+                .map(|i| {
+                    let l = centre(i);
+                    let c = temc_color::cie::cmf(l as f64);
+                    s.eval(l).max(0.0) as f64 * (c[0] + c[1] + c[2])
+                })
+                .collect();
+            let total: f64 = w.iter().sum::<f64>() * BIN as f64;
+            if total > 0.0 {
+                for (m, v) in mix.iter_mut().zip(w) {
+                    *m += v / total / emitters.len() as f64;
+                }
+            }
+        }
+        let pdf: Vec<f64> = (0..n)
+            .map(|i| 0.5 * visible_pdf(centre(i)) as f64 + 0.5 * mix[i])
+            .collect();
+        let total: f64 = pdf.iter().sum::<f64>() * BIN as f64;
+        let mut acc = 0.0;
+        let mut cdf = Vec::with_capacity(n);
+        for p in &pdf {
+            acc += p / total * BIN as f64;
+            cdf.push(acc as f32);
+        }
+        *cdf.last_mut().unwrap() = 1.0;
+        LambdaSampler::Table {
+            pdf: pdf.iter().map(|p| (p / total) as f32).collect(),
+            cdf,
+        }
+    }
+
+    /// Four stratified wavelengths from one uniform number.
+    pub fn sample(&self, u: f32) -> Wavelengths {
+        match self {
+            LambdaSampler::Visible => Wavelengths::sample(u),
+            LambdaSampler::Table { pdf, cdf } => {
+                let mut wl = Wavelengths {
+                    lambda: [0.0; LANES],
+                    pdf: [0.0; LANES],
+                };
+                for i in 0..LANES {
+                    let ui = (u + i as f32 / LANES as f32).fract();
+                    let b = cdf.partition_point(|&c| c <= ui).min(cdf.len() - 1);
+                    let lo = if b == 0 { 0.0 } else { cdf[b - 1] };
+                    let f = ((ui - lo) / (cdf[b] - lo).max(1e-12)).clamp(0.0, 1.0);
+                    wl.lambda[i] = LAMBDA_MIN + (b as f32 + f) * BIN;
+                    wl.pdf[i] = pdf[b];
+                }
+                wl
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tabulated_sampler_integrates_spiky_spectra() {
+        let lamp = Spectrum::fluorescent();
+        let sampler = LambdaSampler::for_emitters(&[&lamp]);
+        let LambdaSampler::Table { pdf, .. } = &sampler else {
+            unreachable!()
+        };
+        assert!((pdf.iter().sum::<f32>() * BIN - 1.0).abs() < 1e-3);
+        // Estimate the integral of ybar * lamp both ways; the table's estimate must agree
+        // with a fine quadrature.
+        let mut exact = 0.0f64;
+        let mut l = LAMBDA_MIN;
+        while l < LAMBDA_MAX {
+            exact += (temc_color::cie::cmf(l as f64)[1] * lamp.eval(l) as f64) * 0.01;
+            l += 0.01;
+        }
+        let n = 40000;
+        let mut est = 0.0f64;
+        for k in 0..n {
+            let wl = sampler.sample((k as f32 + 0.5) / n as f32);
+            for i in 0..LANES {
+                let y = temc_color::cie::cmf(wl.lambda[i] as f64)[1];
+                est += y * lamp.eval(wl.lambda[i]) as f64 / wl.pdf[i] as f64;
+            }
+        }
+        est /= (n * LANES) as f64;
+        assert!((est / exact - 1.0).abs() < 5e-3, "{est} vs {exact}");
+    }
+}

@@ -1,0 +1,182 @@
+//! Spectral distributions: constants, blackbodies, RGB reflectance uplift, emission lines
+//! and measured tables.
+
+use crate::spectral::wavelengths::{Lanes, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
+
+/// A spectral distribution over wavelength.
+#[derive(Clone, Debug)]
+pub enum Spectrum {
+    /// The same value everywhere.
+    Constant(f32),
+    /// Planck's law at a temperature in K, normalised to a peak of 1.
+    Blackbody(f32),
+    /// A reflectance built from linear RGB in [0, 1] (see [`Spectrum::eval`]).
+    Rgb([f32; 3]),
+    /// Gaussian emission lines (centre nm, width nm, height) on a constant floor: a
+    /// synthetic spiky lamp, like the CIE F-series (mercury lines plus phosphors).
+    Lines {
+        /// Value between the lines.
+        floor: f32,
+        /// (centre nm, width nm, height) per line.
+        lines: Vec<(f32, f32, f32)>,
+    },
+    /// Piecewise-linear samples every 10 nm from 360 nm (measured data), held flat
+    /// outside the table.
+    Tabulated(&'static [f32; 48]),
+}
+
+fn planck(l_nm: f32, t: f32) -> f32 {
+    let l = l_nm as f64 * 1e-9;
+    let c1 = 3.741_771_852e-16;
+    let c2 = 1.438_776_877e-2;
+    (c1 / (l.powi(5) * ((c2 / (l * t as f64)).exp() - 1.0))) as f32
+}
+
+/// Smooth partition of unity over blue, green and red: the RGB uplift. Each basis is 1 in
+/// its band and blends over 20 nm, so (1, 1, 1) gives exactly 1 and every RGB in [0, 1]
+/// gives a reflectance in [0, 1] (energy conserving, unlike unbounded fits).
+fn rgb_basis(l: f32) -> [f32; 3] {
+    let s = |a: f32, b: f32| ((l - a) / (b - a)).clamp(0.0, 1.0);
+    let smooth = |t: f32| t * t * (3.0 - 2.0 * t);
+    let to_green = smooth(s(480.0, 500.0));
+    let to_red = smooth(s(570.0, 590.0));
+    [to_red, to_green * (1.0 - to_red), 1.0 - to_green]
+}
+
+impl Spectrum {
+    /// The value at `l` nm.
+    pub fn eval(&self, l: f32) -> f32 {
+        match self {
+            Spectrum::Constant(v) => *v,
+            Spectrum::Blackbody(t) => {
+                let peak = 2.897_772e6 / t; // Wien's displacement law, nm
+                planck(l, *t) / planck(peak, *t)
+            }
+            Spectrum::Rgb(c) => {
+                let b = rgb_basis(l);
+                c[0] * b[0] + c[1] * b[1] + c[2] * b[2]
+            }
+            Spectrum::Lines { floor, lines } => {
+                floor
+                    + lines
+                        .iter()
+                        .map(|&(c, w, h)| h * (-0.5 * ((l - c) / w).powi(2)).exp())
+                        .sum::<f32>()
+            }
+            Spectrum::Tabulated(t) => {
+                let x = ((l - 360.0) / 10.0).clamp(0.0, 47.0);
+                let i = (x as usize).min(46);
+                let f = x - i as f32;
+                t[i] * (1.0 - f) + t[i + 1] * f
+            }
+        }
+    }
+
+    /// CIE standard illuminant D65.
+    pub fn d65() -> Self {
+        Spectrum::Tabulated(&crate::spectral::measured::D65)
+    }
+
+    /// A synthetic fluorescent lamp: mercury lines and narrow phosphor bands over a low
+    /// floor, balanced to a cool white (chromaticity about x 0.361, y 0.357, near 4500 K).
+    pub fn fluorescent() -> Self {
+        Spectrum::Lines {
+            floor: 0.03,
+            lines: vec![
+                (404.7, 1.5, 0.5),
+                (435.8, 1.5, 1.3),
+                (487.0, 4.0, 0.5),
+                (546.1, 1.5, 2.1),
+                (578.0, 2.0, 0.5),
+                (611.0, 3.0, 1.1),
+            ],
+        }
+    }
+
+    /// A narrow-band laser line: a Gaussian of standard deviation `width` nm.
+    pub fn laser(centre: f32, width: f32) -> Self {
+        Spectrum::Lines {
+            floor: 0.0,
+            lines: vec![(centre, width, 1.0)],
+        }
+    }
+
+    /// Whether the spectrum has narrow peaks that visible-range sampling would miss
+    /// (line lamps, lasers): such emitters make the renderer sample wavelengths from the
+    /// emitters' own spectra.
+    pub fn is_spiky(&self) -> bool {
+        matches!(self, Spectrum::Lines { lines, .. } if lines.iter().any(|l| l.1 < 10.0))
+    }
+
+    /// The values at a path's four wavelengths.
+    pub fn sample(&self, wl: &Wavelengths) -> Lanes {
+        wl.lambda.map(|l| self.eval(l))
+    }
+
+    /// Luminance-normalised copy factor: 1 / integral of y-bar times the spectrum, so
+    /// emitters of different shapes with the same scale are equally bright.
+    pub fn luminance(&self) -> f32 {
+        let mut sum = 0.0;
+        let mut l = LAMBDA_MIN;
+        while l <= LAMBDA_MAX {
+            sum += temc_color::cie::cmf(l as f64)[1] as f32 * self.eval(l);
+            l += 1.0;
+        }
+        sum / cie_y_integral()
+    }
+}
+
+/// Integral of the CMF fit's y-bar over 360..830 nm at 1 nm steps.
+pub fn cie_y_integral() -> f32 {
+    let mut sum = 0.0;
+    let mut l = LAMBDA_MIN;
+    while l <= LAMBDA_MAX {
+        sum += temc_color::cie::cmf(l as f64)[1];
+        l += 1.0;
+    }
+    sum as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rgb_uplift_is_bounded_and_white_is_flat() {
+        for l in (360..=830).step_by(5) {
+            let l = l as f32;
+            assert!((Spectrum::Rgb([1.0; 3]).eval(l) - 1.0).abs() < 1e-6);
+            for c in [[1.0, 0.0, 0.0], [0.2, 0.9, 0.4], [0.0, 0.0, 0.0]] {
+                let v = Spectrum::Rgb(c).eval(l);
+                assert!((0.0..=1.0).contains(&v));
+            }
+        }
+    }
+
+    #[test]
+    fn d65_is_near_its_white_point() {
+        let d65 = Spectrum::d65();
+        let (mut x, mut y, mut z) = (0.0, 0.0, 0.0);
+        for l in 360..=830 {
+            let c = temc_color::cie::cmf(l as f64);
+            let v = d65.eval(l as f32) as f64;
+            x += c[0] * v;
+            y += c[1] * v;
+            z += c[2] * v;
+        }
+        let (cx, cy) = (x / (x + y + z), y / (x + y + z));
+        // D65's nominal chromaticity is (0.3127, 0.3290); the analytic CMF fit is close.
+        assert!(
+            (cx - 0.3127).abs() < 0.004 && (cy - 0.3290).abs() < 0.004,
+            "{cx} {cy}"
+        );
+    }
+
+    #[test]
+    fn blackbody_peaks_at_one() {
+        let s = Spectrum::Blackbody(5000.0);
+        let peak = 2.897_772e6 / 5000.0;
+        assert!((s.eval(peak) - 1.0).abs() < 1e-4);
+        assert!(s.eval(400.0) < 1.0 && s.eval(800.0) < 1.0);
+    }
+}
