@@ -96,6 +96,12 @@ pub fn trace(
     )
 }
 
+/// One path, compiled once per kernel. It stays one long function on purpose: it is the
+/// hot loop, and every material arm updates the same path state (throughput, radiance,
+/// the auxiliary buffers, the MIS density, the wavelengths), which helpers would have to
+/// pass around by reference. Splitting it is only worth doing with a render benchmark that
+/// shows no slowdown; on the shared 2-core machine of the restructuring (issue 17),
+/// identical runs varied by about 10 %, too much to show that, so it was left whole.
 fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     scene: &Scene,
     mut wl: Wavelengths,
