@@ -4,13 +4,20 @@
 
 use std::path::{Path, PathBuf};
 
-/// The temporary name for `path`: hidden, in the same folder, with the process id, so
-/// globs such as `spp*.exr` never match it and two processes never share one.
+/// The temporary name for `path`: hidden, in the same folder (so the rename is atomic),
+/// with the process id, so globs such as `spp*.exr` never match it and two processes never
+/// share one. The same scheme as temc's own writer (`temc::io`): `.NAME.temc-PID.tmp.EXT`,
+/// keeping the extension last.
 pub fn temp_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()
-        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.temc-{}.tmp.{ext}", std::process::id()))
 }
 
 /// Writes `path` through `write`, which gets the temporary path to fill; on any error the

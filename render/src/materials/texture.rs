@@ -75,11 +75,6 @@ impl Texture {
     pub fn eval_scalar(&self, u: f32, v: f32) -> f32 {
         self.eval(u, v)[0]
     }
-
-    /// Largest value the texture takes (per channel), for feature inspection.
-    pub fn max(&self) -> [f32; 3] {
-        std::array::from_fn(|i| self.a[i].max(self.b[i]))
-    }
 }
 
 fn hash(i: i32, j: i32) -> f32 {
