@@ -20,7 +20,7 @@ import torch
 from torch import nn
 
 from . import color, fuse, receptive
-from .models import ALIGNMENT, ARCHS, AUX, CHROMA, KERNEL, LEVELS, LUMA, SPLITS, build
+from .models import ALIGNMENT, ARCHS, AUX, CHROMA, LUMA, RECON_DEFAULTS, build, checkpoint_recon
 
 OPSET = 17
 INPUTS = ("chroma", "luma", "aux")
@@ -40,10 +40,12 @@ def output_names(levels: int) -> list:
 
 
 def recon_of(model) -> dict:
-    """The reconstruction settings a model was built for (demodulation defaults off)."""
+    """The reconstruction settings a model was built for (RECON_DEFAULTS for what a model
+    does not carry, as for checkpoints: demodulation off)."""
+    d = RECON_DEFAULTS
     return {"levels": model.levels, "kernel": model.kernel, "split": model.split,
-            "demodulate": bool(getattr(model, "demodulate", False)),
-            "eps": float(getattr(model, "eps", 0.01)), "guide": bool(getattr(model, "guide", False))}
+            "demodulate": bool(getattr(model, "demodulate", d["demodulate"])),
+            "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -215,15 +217,13 @@ def load_checkpoint(path: str, arch=None, width=None):
         info = {k: ckpt[k] for k in ("dataset", "train_steps", "test_relmse") if k in ckpt}
         if "state" in ckpt:  # a training checkpoint (train.py): steps from its state
             info.setdefault("train_steps", ckpt["state"]["step"])
-        recon = ckpt.get("recon")
+        recon = checkpoint_recon(ckpt)
     else:
-        state, info, recon = ckpt, {}, None
+        state, info, recon = ckpt, {}, dict(RECON_DEFAULTS)
     if arch is None or width is None:
         raise ValueError(f"{path}: a bare state_dict needs --arch and --width")
-    recon = recon or {"levels": LEVELS, "kernel": KERNEL, "split": "both",
-                      "demodulate": False, "eps": 0.01}
     model = build(arch, float(width), recon["levels"], recon["kernel"], recon["split"],
-                  recon.get("guide", False))
+                  recon["guide"])
     model.load_state_dict(state)
     model.demodulate, model.eps = recon["demodulate"], recon["eps"]
     return model, arch, float(width), info

@@ -27,6 +27,13 @@ CHROMA, LUMA, AUX = 2, 1, 7
 LEVELS = 3   # pyramid levels of the reconstruction (full, 1/2, 1/4 resolution)
 KERNEL = 5   # k x k taps per level
 SPLITS = ("both", "one")
+# What a checkpoint was trained for when its "recon" (train.recon_settings) lacks a key:
+# runs from before guides (temc2-w0.125, temc2-w0.0625) hold no "guide" and have no guide
+# rows. train.py and export.py both fill the gaps from here, so a checkpoint loads alike.
+RECON_DEFAULTS = {"levels": LEVELS, "kernel": KERNEL, "split": "both", "demodulate": False,
+                  "eps": 0.01, "guide": False}
+# The architectures' names in the paper, the accuracy report and the model cards.
+ARCH_NAMES = {"ae": "AE", "demc": "DEMC", "temc1": "TEMC-1", "temc2": "TEMC-2"}
 
 # VGG16's convolutional part: (channels, convs) per level.
 VGG_LEVELS = ((64, 2), (128, 2), (256, 3), (512, 3), (512, 3))
@@ -332,6 +339,17 @@ def build(arch: str, width: float = 1.0, levels: int = LEVELS, kernel: int = KER
     if arch not in classes:
         raise ValueError(f"unknown architecture {arch!r}; expected one of {ARCHS}")
     return classes[arch](width, levels, kernel, split, guide)
+
+
+def checkpoint_recon(ckpt: dict) -> dict:
+    """The reconstruction a checkpoint's model was trained for (RECON_DEFAULTS where it
+    does not say)."""
+    return {**RECON_DEFAULTS, **(ckpt.get("recon") or {})}
+
+
+def label(arch: str, width) -> str:
+    """A model's name in the accuracy report and its model card, e.g. "TEMC-2 w0.125"."""
+    return f"{ARCH_NAMES[arch]} w{float(width):g}"
 
 
 def count_params(model: nn.Module) -> tuple:

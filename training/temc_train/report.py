@@ -20,15 +20,16 @@ import time
 import numpy as np
 
 from . import evaluate as ev
+from .models import ARCH_NAMES, label
 
 HARD = ("named-cornell-spiky", "named-prism", "named-firefly", "named-dark-room", "named-laser")
 
 
 def model_label(temc, path):
+    """(name, metadata) of an ONNX model; the name is models.label's, as on its model card."""
     r = subprocess.run([temc, "info", path, "--json"], capture_output=True, text=True, check=True)
     meta = json.loads(r.stdout)
-    arch = meta.get("temc.architecture", "?").upper().replace("TEMC", "TEMC-")
-    return f"{arch} w{float(meta.get('temc.width', 0)):g}", meta
+    return label(meta["temc.architecture"], meta["temc.width"]), meta
 
 
 def tonemap(rgb):
@@ -102,8 +103,8 @@ def verdict(mean, spps, labels, rows):
     Means over scenes are dominated by the scene with the largest error (a firefly), so the
     per-scene count and the median ratio come first."""
     out = []
-    temc2 = [l for l in labels if l.startswith("TEMC-2")]
-    base = [l for l in labels if not l.startswith("TEMC-2")]
+    temc2 = [l for l in labels if l.startswith(ARCH_NAMES["temc2"])]
+    base = [l for l in labels if not l.startswith(ARCH_NAMES["temc2"])]
     err = {(r["denoiser"], r["scene"], r["spp"]): r["RelMSE"] for r in rows}
     cases = sorted({(r["scene"], r["spp"]) for r in rows})
     for l in labels + ["OIDN high"]:
@@ -137,7 +138,7 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
     """The targets section: per temc model and spp, geometric-mean RelMSE and mean Delta E
     ITP as ratios to OIDN high's on the same images, against the bounds, and the worst
     scene's |mean / reference mean - 1| (the noisy input's beside it: the render's own)."""
-    ours = [n for n in denoisers if n.startswith("TEMC") or n.startswith("AE") or n.startswith("DEMC")]
+    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
     md = ["## Targets (issue 15)", "",
           "Geometric-mean RelMSE and mean Delta E ITP over the test scenes as ratios to OIDN "
           "high's on the same images (bounds: 16 spp RelMSE <= 0.8x and Delta E <= 0.7x; 4 and "
@@ -159,96 +160,128 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
     return md + ["", "Bold: the bound is met.", ""]
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", required=True)
-    ap.add_argument("--temc", required=True, help="the temc binary")
-    ap.add_argument("--model", action="append", default=[], help="an ONNX model (repeatable)")
-    ap.add_argument("--runs", help="training runs folder (log.csv per run) for the training curves")
-    ap.add_argument("--out", required=True, help="the Markdown report")
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--timing-size", default="1920x1080")
-    ap.add_argument("--aux-model", help="the model whose aux modes are compared (default: the "
-                    "first --model named temc2-balanced.onnx, else the first)")
-    a = ap.parse_args(argv)
+class Means:
+    """The report's averages over the test scenes of one denoiser at one spp."""
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from PIL import Image
+    def __init__(self, rows):
+        self.rows = rows
 
-    out_dir = os.path.dirname(os.path.abspath(a.out))
-    img_dir = os.path.join(out_dir, "img", "accuracy")
-    os.makedirs(img_dir, exist_ok=True)
-    with open(os.path.join(a.data, "manifest.json")) as f:
-        manifest = json.load(f)
-    tests = [r for r in manifest["scenes"] if r["split"] == "test"]
-    if not tests:
-        raise SystemExit("no finished test scenes in the data set yet")
-    models = [(model_label(a.temc, m)[0], m) for m in a.model]
-    denoisers = ["noisy"] + [m[0] for m in models] + ["OIDN high", "OIDN fast"]
-    aux_model = a.aux_model or next((m for m in a.model if m.endswith("temc2-balanced.onnx")),
-                                    a.model[0] if a.model else None)
-    aux_label = model_label(a.temc, aux_model)[0] if aux_model else None
-    aux_rows = []
+    def values(self, name, spp, key):
+        return [r[key] for r in self.rows if r["denoiser"] == name and r["spp"] == spp]
 
+    def mean(self, name, spp, key):
+        v = self.values(name, spp, key)
+        return float(np.mean(v)) if v else float("nan")
+
+    def geomean(self, name, spp, key):
+        """The plot's and the raw-spp equivalence's average: one scene with a huge error
+        (named-firefly's noisy input) would decide an arithmetic mean alone."""
+        v = np.maximum(self.values(name, spp, key), 1e-12)
+        return float(np.exp(np.mean(np.log(v)))) if v.size else float("nan")
+
+    def at(self, name, scene, spp, key):
+        """One scene's value, NaN when it was not measured."""
+        return next((r[key] for r in self.rows if r["denoiser"] == name and r["scene"] == scene
+                     and r["spp"] == spp), float("nan"))
+
+
+def temc_denoiser(temc, model, threads):
+    """A temc model as the report runs it: (EXR path, layers, aux mode) -> (image, seconds)."""
+    return lambda path, layers, aux="full": ev.temc_denoise(temc, model, path, threads, aux)
+
+
+def temc_bench(temc, model, size):
+    """A temc model's median seconds at `size` ("WxH") on `threads` threads."""
+    def bench(threads):
+        r = subprocess.run([temc, "bench", "--model", model, "--size", size, "--threads",
+                            str(threads), "--repeat", "2", "--json"],
+                           capture_output=True, text=True, check=True)
+        return json.loads(r.stdout)["median_seconds"]
+    return bench
+
+
+def oidn_denoiser(quality):
+    return lambda path, layers, aux="full": ev.oidn_denoise(layers, quality, aux)
+
+
+# OIDN as the report compares it: name -> quality.
+OIDN = {"OIDN high": "high", "OIDN fast": "fast"}
+
+
+def measure_scene(rec, root, denoisers, aux):
+    """Every denoiser on every noisy render of one test scene: (rows, aux rows, the 16-spp
+    outputs and reference for the image strips or None). `denoisers` maps names to
+    (path, layers, aux mode) -> (image, seconds); `aux` is (name, denoiser) of the temc
+    model whose aux modes are compared, or None."""
+    d = os.path.join(root, rec["dir"])
+    ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
+    max_spp = max(s for s, _ in rec["noisy"])
+    rows, aux_rows, strip = [], [], None
+    for spp, fname in rec["noisy"]:
+        path = os.path.join(d, fname)
+        layers = ev.read_exr(path)
+        render_s = rec["seconds_noisy"] * spp / max_spp
+        outs = {"noisy": (layers["color"], 0.0)}
+        outs.update((name, run(path, layers)) for name, run in denoisers.items())
+        for name, (img, secs) in outs.items():
+            rows.append({"scene": rec["name"], "spp": spp, "denoiser": name,
+                         "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref)})
+        if spp == 16:
+            strip = (outs, ref)
+            if aux:
+                aux_rows += measure_aux_modes(rec["name"], path, layers, ref, outs, aux, denoisers)
+    return rows, aux_rows, strip
+
+
+def measure_aux_modes(scene, path, layers, ref, outs, aux, denoisers):
+    """The three input sets (colour; + albedo; + normal and depth) at 16 spp: one temc
+    model trained with aux dropout against OIDN's separate weights."""
     rows = []
-    strips = {}
-    for rec in tests:
-        d = os.path.join(a.data, rec["dir"])
-        ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
-        max_spp = max(s for s, _ in rec["noisy"])
-        for spp, fname in rec["noisy"]:
-            path = os.path.join(d, fname)
-            layers = ev.read_exr(path)
-            render_s = rec["seconds_noisy"] * spp / max_spp
-            outs = {"noisy": (layers["color"], 0.0)}
-            for label, m in models:
-                outs[label] = ev.temc_denoise(a.temc, m, path, a.threads)
-            outs["OIDN high"] = ev.oidn_denoise(layers, "high")
-            outs["OIDN fast"] = ev.oidn_denoise(layers, "fast")
-            for name, (img, secs) in outs.items():
-                rows.append({"scene": rec["name"], "spp": spp, "denoiser": name,
-                             "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref)})
-            if rec["name"] in HARD and spp == 16:
-                strips[rec["name"]] = (outs, ref)
-            # The three input sets (colour; + albedo; + normal and depth) at 16 spp: one
-            # temc model trained with aux dropout against OIDN's separate weights.
-            if spp == 16 and aux_model:
-                for mode in ("full", "albedo", "none"):
-                    for name, run in ((aux_label, lambda: ev.temc_denoise(a.temc, aux_model, path, a.threads, mode)),
-                                      ("OIDN high", lambda: ev.oidn_denoise(layers, "high", mode))):
-                        img, secs = (outs[name] if mode == "full" else run())
-                        aux_rows.append({"scene": rec["name"], "denoiser": name, "aux": mode,
-                                         "denoise_s": secs, **ev.all_metrics(img, ref)})
-        print(f"evaluated {rec['name']}", flush=True)
+    for mode in ("full", "albedo", "none"):
+        for name, run in (aux, ("OIDN high", denoisers["OIDN high"])):
+            img, secs = outs[name] if mode == "full" and name in outs else run(path, layers, mode)
+            rows.append({"scene": scene, "denoiser": name, "aux": mode, "denoise_s": secs,
+                         **ev.all_metrics(img, ref)})
+    return rows
 
-    with open(os.path.join(img_dir, "measurements.csv"), "w", newline="") as f:
+
+def measure(root, tests, denoisers, aux):
+    """measure_scene over the test scenes: (rows, aux rows, strips of the HARD scenes)."""
+    rows, aux_rows, strips = [], [], {}
+    for rec in tests:
+        r, ar, strip = measure_scene(rec, root, denoisers, aux)
+        rows += r
+        aux_rows += ar
+        if rec["name"] in HARD and strip:
+            strips[rec["name"]] = strip
+        print(f"evaluated {rec['name']}", flush=True)
+    return rows, aux_rows, strips
+
+
+def timings(bench, threads, size, oidn_time):
+    """(denoiser, threads, median seconds) at `size` on one thread and on `threads`; `bench`
+    maps each temc model's name to threads -> seconds."""
+    tw, th = (int(v) for v in size.split("x"))
+    out = []
+    for t in (1, threads):
+        out += [(label, t, b(t)) for label, b in bench.items()]
+        out += [(name, t, oidn_time((tw, th), t, q)) for name, q in OIDN.items()]
+    return out
+
+
+def write_csv(path, rows):
+    with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
 
-    spps = sorted({r["spp"] for r in rows})
-    metrics = list(ev.METRICS)
 
-    def values(name, spp, key):
-        return [r[key] for r in rows if r["denoiser"] == name and r["spp"] == spp]
-
-    def mean(name, spp, key):
-        v = values(name, spp, key)
-        return float(np.mean(v)) if v else float("nan")
-
-    def geomean(name, spp, key):
-        """The plot's and the raw-spp equivalence's average: one scene with a huge error
-        (named-firefly's noisy input) would decide an arithmetic mean alone."""
-        v = np.maximum(values(name, spp, key), 1e-12)
-        return float(np.exp(np.mean(np.log(v)))) if v.size else float("nan")
-
-    # Error against time: raw rendering at rising spp, and each denoiser after each spp.
+def plot_error_vs_time(plt, denoisers, spps, m, path):
+    """Error against time: raw rendering at rising spp, and each denoiser after each spp."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for name in denoisers:
-        xs = [mean(name, s, "render_s") + mean(name, s, "denoise_s") for s in spps]
-        ys = [geomean(name, s, "RelMSE") for s in spps]
+        xs = [m.mean(name, s, "render_s") + m.mean(name, s, "denoise_s") for s in spps]
+        ys = [m.geomean(name, s, "RelMSE") for s in spps]
         ax.plot(xs, ys, "o-" if name != "noisy" else "k--", label=name if name != "noisy" else "raw rendering")
         for x, y, s in zip(xs, ys, spps):
             if name == "noisy":
@@ -260,161 +293,266 @@ def main(argv=None):
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
-    fig.savefig(os.path.join(img_dir, "error-vs-time.png"), dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
-    # How many spp of raw rendering equal 16 spp denoised (log-log interpolation of the raw
-    # curve, extrapolated along its last segment past 256 spp).
-    raw = [(s, geomean("noisy", s, "RelMSE"), mean("noisy", s, "render_s")) for s in spps]
 
-    def equivalent(err):
-        ls = np.log([r[0] for r in raw])
-        le = np.log([r[1] for r in raw])
-        if err >= raw[0][1]:
-            return float(raw[0][0]), raw[0][2]
-        k = len(raw) - 2
-        for i in range(len(raw) - 1):
-            if raw[i + 1][1] <= err:
-                k = i
-                break
-        slope = (ls[k + 1] - ls[k]) / (le[k + 1] - le[k])
-        spp = float(np.exp(ls[k] + slope * (np.log(err) - le[k])))
-        return spp, raw[k][2] * spp / raw[k][0]
+def write_strips(strips, names, img_dir):
+    """Image strips of the hard cases at 16 spp (centre crops, tone-mapped, 2x); returns
+    (scene, file name) per strip."""
+    from PIL import Image
 
-    # Timing at the timing size per model and thread count, OIDN in the same run.
-    tw, th = (int(v) for v in a.timing_size.split("x"))
-    timing = []
-    for threads in (1, a.threads):
-        for label, m in models:
-            r = subprocess.run([a.temc, "bench", "--model", m, "--size", a.timing_size, "--threads",
-                                str(threads), "--repeat", "2", "--json"],
-                               capture_output=True, text=True, check=True)
-            timing.append((label, threads, json.loads(r.stdout)["median_seconds"]))
-        for q in ("high", "fast"):
-            timing.append((f"OIDN {q}", threads, oidn_timing((tw, th), threads, q)))
-
-    # Image strips of the hard cases at 16 spp.
-    strip_names = ["noisy", "OIDN high"] + [m[0] for m in models] + ["reference"]
-    strip_files = []
+    files = []
     for scene, (outs, ref) in strips.items():
         h, w = ref.shape[:2]
         c = min(128, h, w)
         y0, x0 = (h - c) // 2, (w - c) // 2
-        tiles = []
-        for n in strip_names:
-            img = ref if n == "reference" else outs[n][0]
-            tiles.append(tonemap(exposed(img, ref))[y0:y0 + c, x0:x0 + c])
+        tiles = [tonemap(exposed(ref if n == "reference" else outs[n][0], ref))[y0:y0 + c, x0:x0 + c]
+                 for n in names]
         fn = f"crops-{scene}.png"
         Image.fromarray(np.concatenate(tiles, 1)).resize((c * 2 * len(tiles), c * 2), Image.NEAREST).save(
             os.path.join(img_dir, fn))
-        strip_files.append((scene, fn))
+        files.append((scene, fn))
+    return files
 
-    # Training curves.
-    curves = []
-    logs = {}
-    if a.runs:
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for log in sorted(glob.glob(os.path.join(a.runs, "*", "log.csv"))):
-            with open(log) as f:
-                rs = [r for r in csv.DictReader(f) if r["val_loss"]]
-            if len(rs) < 2:
-                continue
-            name = os.path.basename(os.path.dirname(log))
-            ax.plot([float(r["train_seconds"]) / 60 for r in rs], [float(r["val_loss"]) for r in rs], label=name)
-            curves.append((name, rs[-1]))
-            logs[name] = [(float(r["train_seconds"]), float(r["val_loss"])) for r in rs]
-        ax.set_xlabel("CPU minutes in training steps (1 thread)")
-        ax.set_ylabel("validation loss (L1 + MS-SSIM mix)")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(os.path.join(img_dir, "training.png"), dpi=110)
-        plt.close(fig)
 
+def read_training_logs(runs):
+    """Per run with two or more validations: (curves: (name, last row), logs: name ->
+    [(train seconds, val loss)])."""
+    curves, logs = [], {}
+    for log in sorted(glob.glob(os.path.join(runs, "*", "log.csv"))):
+        with open(log) as f:
+            rs = [r for r in csv.DictReader(f) if r["val_loss"]]
+        if len(rs) < 2:
+            continue
+        name = os.path.basename(os.path.dirname(log))
+        curves.append((name, rs[-1]))
+        logs[name] = [(float(r["train_seconds"]), float(r["val_loss"])) for r in rs]
+    return curves, logs
+
+
+def plot_training(plt, logs, path):
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, pts in logs.items():
+        ax.plot([t / 60 for t, _ in pts], [v for _, v in pts], label=name)
+    ax.set_xlabel("CPU minutes in training steps (1 thread)")
+    ax.set_ylabel("validation loss (L1 + MS-SSIM mix)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def machine():
+    """This machine, for the report's header."""
     import platform
+
     cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
                platform.processor())
-    md = ["# Accuracy against time", "",
-          "Regenerate with `scripts/accuracy-report` (one command; every number below comes from that run).",
-          f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}), {manifest['options']['size']}² pixels, "
-          f"reference {manifest['options']['ref_spp']} spp. Denoising on {a.threads} threads of this machine; "
-          "OIDN 2.5 through pyoidn (HDR, albedo + normal) measured in the same run. "
-          f"Machine: {cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}. Denoise seconds "
-          "are execution only (model loading excluded, for temc and OIDN alike); render seconds come "
-          "from the data set's progressive renders (2 threads), scaled by spp.", ""]
-    md += targets(denoisers, spps, values, geomean, mean)
+    return f"{cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}"
+
+
+def header(tests, manifest, threads, where):
+    return ["# Accuracy against time", "",
+            "Regenerate with `scripts/accuracy-report` (one command; every number below comes from that run).",
+            f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}), {manifest['options']['size']}² pixels, "
+            f"reference {manifest['options']['ref_spp']} spp. Denoising on {threads} threads of this machine; "
+            "OIDN 2.5 through pyoidn (HDR, albedo + normal) measured in the same run. "
+            f"Machine: {where}. Denoise seconds "
+            "are execution only (model loading excluded, for temc and OIDN alike); render seconds come "
+            "from the data set's progressive renders (2 threads), scaled by spp.", ""]
+
+
+def verdict_section(m, spps, labels):
+    return ["## Verdict", ""] + [f"- {line}" for line in verdict(m.mean, spps, labels, m.rows)] + [""]
+
+
+def per_scene_section(m, denoisers, spps, scenes):
+    """RelMSE per scene at 16 spp (when measured), and every scene's mean / reference mean."""
+    md = []
+    if 16 in spps:
+        md += ["## RelMSE per scene at 16 spp", "",
+               "| denoiser | " + " | ".join(scenes) + " |", "|---|" + "---:|" * len(scenes)]
+        md += [f"| {n} | " + " | ".join(f"{m.at(n, c, 16, 'RelMSE'):.3g}" for c in scenes) + " |"
+               for n in denoisers] + [""]
+    md += ["## Mean / reference mean per scene", "",
+           "Energy: a denoiser keeps the image's mean (1.000); the noisy input's own ratio is the "
+           "render's noise in the mean.", "",
+           "| denoiser | spp | " + " | ".join(scenes) + " |", "|---|---:|" + "---:|" * len(scenes)]
+    md += [f"| {n} | {s} | " + " | ".join(f"{m.at(n, c, s, 'mean/ref'):.3f}" for c in scenes) + " |"
+           for n in denoisers for s in spps] + [""]
+    return md
+
+
+def spp_tables(m, denoisers, spps):
+    metrics = list(ev.METRICS)
+    md = []
     for s in spps:
         md += [f"## {s} spp", "", "| denoiser | " + " | ".join(metrics) + " | denoise s |",
                "|---|" + "---:|" * (len(metrics) + 1)]
         for n in denoisers:
-            md.append(f"| {n} | " + " | ".join(f"{mean(n, s, k):.4g}" for k in metrics)
-                      + f" | {mean(n, s, 'denoise_s'):.3f} |")
+            md.append(f"| {n} | " + " | ".join(f"{m.mean(n, s, k):.4g}" for k in metrics)
+                      + f" | {m.mean(n, s, 'denoise_s'):.3f} |")
         md.append("")
-    md += ["## Error against time", "", "![error against time](img/accuracy/error-vs-time.png)", "",
-           "RelMSE here is the geometric mean over the test scenes (the tables above give arithmetic "
-           "means, which named-firefly's noisy input dominates).", "",
-           "| denoiser at 16 spp | RelMSE (geo. mean) | raw spp with the same RelMSE | raw render seconds | 16 spp + denoise seconds |",
-           "|---|---:|---:|---:|---:|"]
+    return md
+
+
+def raw_equivalent(raw, err):
+    """(spp, render seconds) of raw rendering with RelMSE `err`: log-log interpolation of
+    the raw curve `raw` [(spp, geomean RelMSE, render seconds)], extrapolated along its
+    last segment past the highest spp."""
+    ls = np.log([r[0] for r in raw])
+    le = np.log([r[1] for r in raw])
+    if err >= raw[0][1]:
+        return float(raw[0][0]), raw[0][2]
+    k = len(raw) - 2
+    for i in range(len(raw) - 1):
+        if raw[i + 1][1] <= err:
+            k = i
+            break
+    slope = (ls[k + 1] - ls[k]) / (le[k + 1] - le[k])
+    spp = float(np.exp(ls[k] + slope * (np.log(err) - le[k])))
+    return spp, raw[k][2] * spp / raw[k][0]
+
+
+def error_vs_time_section(m, denoisers, spps):
+    """How many spp of raw rendering equal 16 spp denoised."""
+    md = ["## Error against time", "", "![error against time](img/accuracy/error-vs-time.png)", "",
+          "RelMSE here is the geometric mean over the test scenes (the tables above give arithmetic "
+          "means, which named-firefly's noisy input dominates).", "",
+          "| denoiser at 16 spp | RelMSE (geo. mean) | raw spp with the same RelMSE | raw render seconds | 16 spp + denoise seconds |",
+          "|---|---:|---:|---:|---:|"]
     if 16 in spps:
+        raw = [(s, m.geomean("noisy", s, "RelMSE"), m.mean("noisy", s, "render_s")) for s in spps]
         for n in denoisers[1:]:
-            e = geomean(n, 16, "RelMSE")
-            spp, secs = equivalent(e)
+            e = m.geomean(n, 16, "RelMSE")
+            spp, secs = raw_equivalent(raw, e)
             md.append(f"| {n} | {e:.4g} | {spp:.0f} | {secs:.1f} | "
-                      f"{mean(n, 16, 'render_s') + mean(n, 16, 'denoise_s'):.1f} |")
-    md += ["", f"## Denoising time at {a.timing_size}", "",
-           "| denoiser | threads | median seconds |", "|---|---:|---:|"]
-    md += [f"| {n} | {t} | {s:.3f} |" for n, t, s in timing]
-    if aux_rows:
-        md += ["", "## Inputs: colour, colour + albedo, colour + albedo + normal (16 spp)", "",
-               f"{aux_label} is one model trained with random aux dropout (20 % colour only, some "
-               "albedo only); OIDN ships separate weights per input set. Means over the test scenes.", "",
-               "| denoiser | aux | " + " | ".join(metrics) + " |", "|---|---|" + "---:|" * len(metrics)]
-        for name in (aux_label, "OIDN high"):
-            for mode in ("full", "albedo", "none"):
-                sel = [r for r in aux_rows if r["denoiser"] == name and r["aux"] == mode]
-                md.append(f"| {name} | {mode} | " + " | ".join(
-                    f"{np.mean([r[k] for r in sel]):.4g}" for k in metrics) + " |")
-        with open(os.path.join(img_dir, "aux-modes.csv"), "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(aux_rows[0]))
-            w.writeheader()
-            w.writerows(aux_rows)
-    if strip_files:
-        md += ["", "## Hard cases at 16 spp", "", "Left to right: " + ", ".join(strip_names) + ".", ""]
-        md += [f"**{s}**\n\n![{s}](img/accuracy/{fn})\n" for s, fn in strip_files]
-    if curves:
-        md += ["", "## Training", "", "![training curves](img/accuracy/training.png)", "",
-               "| run | steps | training minutes | final validation loss |", "|---|---:|---:|---:|"]
-        md += [f"| {n} | {r['step']} | {float(r['train_seconds']) / 60:.0f} | {float(r['val_loss']):.4f} |"
+                      f"{m.mean(n, 16, 'render_s') + m.mean(n, 16, 'denoise_s'):.1f} |")
+    return md
+
+
+def timing_section(size, timing):
+    return (["", f"## Denoising time at {size}", "", "| denoiser | threads | median seconds |", "|---|---:|---:|"]
+            + [f"| {n} | {t} | {s:.3f} |" for n, t, s in timing])
+
+
+def aux_section(aux_label, aux_rows):
+    if not aux_rows:
+        return []
+    metrics = list(ev.METRICS)
+    md = ["", "## Inputs: colour, colour + albedo, colour + albedo + normal (16 spp)", "",
+          f"{aux_label} is one model trained with random aux dropout (20 % colour only, some "
+          "albedo only); OIDN ships separate weights per input set. Means over the test scenes.", "",
+          "| denoiser | aux | " + " | ".join(metrics) + " |", "|---|---|" + "---:|" * len(metrics)]
+    for name in (aux_label, "OIDN high"):
+        for mode in ("full", "albedo", "none"):
+            sel = [r for r in aux_rows if r["denoiser"] == name and r["aux"] == mode]
+            md.append(f"| {name} | {mode} | " + " | ".join(
+                f"{np.mean([r[k] for r in sel]):.4g}" for k in metrics) + " |")
+    return md
+
+
+def strips_section(names, files):
+    if not files:
+        return []
+    return (["", "## Hard cases at 16 spp", "", "Left to right: " + ", ".join(names) + ".", ""]
+            + [f"**{s}**\n\n![{s}](img/accuracy/{fn})\n" for s, fn in files])
+
+
+def training_section(curves, logs):
+    if not curves:
+        return []
+    return (["", "## Training", "", "![training curves](img/accuracy/training.png)", "",
+             "| run | steps | training minutes | final validation loss |", "|---|---:|---:|---:|"]
+            + [f"| {n} | {r['step']} | {float(r['train_seconds']) / 60:.0f} | {float(r['val_loss']):.4f} |"
                for n, r in curves]
-        md += ["", "The paper's claims, checked on these runs (same width 0.125, same budget):", ""]
-        md += [f"- {line}" for line in claims(logs)]
-    at = md.index(f"## {spps[0]} spp")
-    block = ["## Verdict", ""] + [f"- {line}" for line in verdict(mean, spps, [m[0] for m in models], rows)] + [""]
-    if 16 in spps:
-        scenes = [r["name"] for r in tests]
+            + ["", "The paper's claims, checked on these runs (same width 0.125, same budget):", ""]
+            + [f"- {line}" for line in claims(logs)])
 
-        def err(n, c):
-            return next(r["RelMSE"] for r in rows if r["denoiser"] == n and r["scene"] == c and r["spp"] == 16)
 
-        block += ["## RelMSE per scene at 16 spp", "",
-                  "| denoiser | " + " | ".join(scenes) + " |", "|---|" + "---:|" * len(scenes)]
-        block += [f"| {n} | " + " | ".join(f"{err(n, c):.3g}" for c in scenes) + " |" for n in denoisers] + [""]
+def markdown(m, tests, manifest, denoisers, labels, threads, where, extra):
+    """The report, from the measurements `m` and the sections that need more than them
+    (`extra`: timing, aux, strips and training lines, in that order)."""
+    spps = sorted({r["spp"] for r in m.rows})
     scenes = [r["name"] for r in tests]
+    return (header(tests, manifest, threads, where)
+            + targets(denoisers, spps, m.values, m.geomean, m.mean)
+            + verdict_section(m, spps, labels) + per_scene_section(m, denoisers, spps, scenes)
+            + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps) + extra)
 
-    def ratio(n, c, s):
-        return next((r["mean/ref"] for r in rows if r["denoiser"] == n and r["scene"] == c
-                     and r["spp"] == s), float("nan"))
 
-    block += ["## Mean / reference mean per scene", "",
-              "Energy: a denoiser keeps the image's mean (1.000); the noisy input's own ratio is the "
-              "render's noise in the mean.", "",
-              "| denoiser | spp | " + " | ".join(scenes) + " |", "|---|---:|" + "---:|" * len(scenes)]
-    block += [f"| {n} | {s} | " + " | ".join(f"{ratio(n, c, s):.3f}" for c in scenes) + " |"
-              for n in denoisers for s in spps] + [""]
-    md[at:at] = block
+def parse_args(argv):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--temc", required=True, help="the temc binary")
+    ap.add_argument("--model", action="append", default=[], help="an ONNX model (repeatable)")
+    ap.add_argument("--runs", help="training runs folder (log.csv per run) for the training curves")
+    ap.add_argument("--out", required=True, help="the Markdown report")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--timing-size", default="1920x1080")
+    ap.add_argument("--aux-model", help="the model whose aux modes are compared (default: the "
+                    "first --model named temc2-balanced.onnx, else the first)")
+    return ap.parse_args(argv)
+
+
+def read_test_scenes(root):
+    with open(os.path.join(root, "manifest.json")) as f:
+        manifest = json.load(f)
+    tests = [r for r in manifest["scenes"] if r["split"] == "test"]
+    if not tests:
+        raise SystemExit("no finished test scenes in the data set yet")
+    return manifest, tests
+
+
+def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
+    """Measures and writes the report for the options `a` (parse_args'). `models`: per temc
+    model (name, denoiser, bench: threads -> seconds); `aux`: (name, denoiser) of the model
+    whose aux modes are compared, or None. OIDN's denoiser and timing are parameters so that
+    a machine without pyoidn can run the rest (default: pyoidn's); `where` is the header's
+    machine line (default: this machine's, today)."""
+    oidn_denoise, oidn_time = oidn_denoise or oidn_denoiser, oidn_time or oidn_timing
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    img_dir = os.path.join(os.path.dirname(os.path.abspath(a.out)), "img", "accuracy")
+    os.makedirs(img_dir, exist_ok=True)
+    manifest, tests = read_test_scenes(a.data)
+    labels = [name for name, _, _ in models]
+    denoisers = ["noisy"] + labels + list(OIDN)
+    runs = {name: run for name, run, _ in models}
+    runs.update((name, oidn_denoise(q)) for name, q in OIDN.items())
+    rows, aux_rows, strips = measure(a.data, tests, runs, aux)
+    write_csv(os.path.join(img_dir, "measurements.csv"), rows)
+    m = Means(rows)
+    plot_error_vs_time(plt, denoisers, sorted({r["spp"] for r in rows}), m,
+                       os.path.join(img_dir, "error-vs-time.png"))
+    timing = timings({name: b for name, _, b in models}, a.threads, a.timing_size, oidn_time)
+    strip_names = ["noisy", "OIDN high"] + labels + ["reference"]
+    strip_files = write_strips(strips, strip_names, img_dir)
+    curves, logs = read_training_logs(a.runs) if a.runs else ([], {})
+    if a.runs:
+        plot_training(plt, logs, os.path.join(img_dir, "training.png"))
+    if aux_rows:
+        write_csv(os.path.join(img_dir, "aux-modes.csv"), aux_rows)
+    extra = (timing_section(a.timing_size, timing) + aux_section(aux and aux[0], aux_rows)
+             + strips_section(strip_names, strip_files) + training_section(curves, logs))
+    md = markdown(m, tests, manifest, denoisers, labels, a.threads, where or machine(), extra)
     with open(a.out, "w") as f:
         f.write("\n".join(md) + "\n")
     print(f"wrote {a.out}")
+
+
+def main(argv=None):
+    a = parse_args(argv)
+    models = [(model_label(a.temc, m)[0], temc_denoiser(a.temc, m, a.threads),
+               temc_bench(a.temc, m, a.timing_size)) for m in a.model]
+    aux_model = a.aux_model or next((m for m in a.model if m.endswith("temc2-balanced.onnx")),
+                                    a.model[0] if a.model else None)
+    aux = (model_label(a.temc, aux_model)[0], temc_denoiser(a.temc, aux_model, a.threads)) if aux_model else None
+    report(a, models, aux)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ import torch
 from . import receptive
 from .export import (INPUTS, example_inputs, export, load_checkpoint, metadata, output_names,
                      recon_of, run_ort)
-from .models import count_params
+from .models import ARCH_NAMES, count_params, label
 
 # file (under onnx/) -> (run folder, quality mode or None for a baseline)
 SHIPPED = {
@@ -47,13 +47,10 @@ NOTES = {
 BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8, "temc2-high": 4}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
-ARCH_NAMES = {"temc2": "TEMC-2", "temc1": "TEMC-1", "demc": "DEMC", "ae": "AE"}
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
-
-
-def label(arch, width):
-    """The accuracy report's name for a model (report.model_label)."""
-    return f"{ARCH_NAMES[arch]} w{float(width):g}"
+# The recipe of runs from before train.py stored it in the checkpoint (scripts/train-all).
+OLD_HPARAMS = {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
+               "rel_weight": 0.0, "target_spp": 0, "loss": "mix"}
 
 
 def read_log(run):
@@ -74,20 +71,40 @@ def table(measurements, name):
     return {s: {k: float(np.mean(v)) for k, v in d.items()} for s, d in sorted(out.items())}
 
 
-def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, recon, overlap):
+def still_rendering(ck, data) -> bool:
+    """Whether the run saw fewer training scenes than the data set now holds (said only
+    where both are known)."""
+    n = ck["train_scenes"]
+    return data["train"] is not None and isinstance(n, int) and n < data["train"]
+
+
+def trained_for(ck) -> str:
+    """The card's account of the compute: CPU minutes on how many threads, and the GPU
+    minutes of steps run there (train.py keeps them apart)."""
+    threads = ck["hparams"]["threads"]
+    text = (f"{ck['train_seconds'] / 60:.0f} CPU minutes on "
+            f"{'one core' if threads == 1 else f'{threads} threads'} of this project's 2-core machine")
+    if ck.get("gpu_seconds"):
+        text += f" and {ck['gpu_seconds'] / 60:.0f} GPU minutes"
+    return text
+
+
+def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap):
+    """The model card. `data`: {"text": the data set's settings, "train": its training
+    scenes or None}."""
     lines = [f"# {file}.onnx: {ARCH_NAMES[arch]} at width {width:g}", ""]
     if mode:
         lines += [f"Quality mode: **{mode}**, built into the library (src/filter/builtin.rs).", ""]
     if file in NOTES:
         lines += [NOTES[file], ""]
-    else:
+    if not mode:
         lines += ["A baseline the paper compares against; not built in: pass it as \"weights\" "
                   "(`temc denoise --model onnx/" + file + ".onnx`).", ""]
     hours = ck["train_seconds"] / 3600
     hp = ck["hparams"]
     lines += [
         "**Small on purpose.** Trained so far for "
-        f"{ck['train_seconds'] / 60:.0f} CPU minutes on one core of this project's 2-core machine "
+        f"{trained_for(ck)} "
         f"({BUDGET_HOURS.get(file, 0):g} CPU hours is its budget in scripts/train-all; each session adds to it) "
         "(the paper trained 8 hours on 4 GPUs), at width "
         f"{width:g} of the paper's channel counts. It is not the paper's model and its "
@@ -98,8 +115,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, reco
         f"| parameters | {ck['params'][0]:,} convolution + {ck['params'][1]:,} batch-norm |",
         f"| file size | {size / 2**20:.1f} MiB |",
         f"| training run | training/runs/{run_name} |",
-        f"| data | {ck['dataset']}, as it stands now: {data_opts}; the run trained on "
-        f"{ck['train_scenes']} training scenes (the set was still rendering) |",
+        f"| data | {ck['dataset']}, as it stands now: {data['text']}; the run trained on "
+        f"{ck['train_scenes']} training scenes" + (" (the set was still rendering)" if still_rendering(ck, data) else "")
+        + " |",
         f"| steps | {ck['train_steps']:,} (batch {hp['batch']}, random {hp['crop']}x{hp['crop']} crops, "
         "flips, rotations, aux dropout) |",
         f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, {hp['threads']} "
@@ -163,14 +181,95 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data_opts, reco
         "scripts/ship-models          # export, goldens, cards, the accuracy report",
         "```", "",
         "## Limitations", "",
-        "- Trained on procedurally generated scenes of temc-render (the data set was still "
-        "rendering, see the data row); scenes far "
+        "- Trained on procedurally generated scenes of temc-render"
+        + (" (the data set was still rendering, see the data row)" if still_rendering(ck, data) else "")
+        + "; scenes far "
         "from them (textures, hair, volumes, depth of field) are untested.",
         "- The budget is tiny: the model is far from converged (see the training curve in "
         "docs/accuracy-vs-time.md); longer training on a GPU is expected to improve it a lot.",
         "",
     ]
     return "\n".join(lines)
+
+
+def read_measurements(path):
+    if path and os.path.exists(path):
+        with open(path) as f:
+            return list(csv.DictReader(f))
+    return None
+
+
+def data_facts(root) -> dict:
+    """The data set's settings for the cards: {"text", "train": training scenes or None}."""
+    if not (root and os.path.exists(os.path.join(root, "manifest.json"))):
+        return {"text": "temc-render dataset", "train": None}
+    with open(os.path.join(root, "manifest.json")) as f:
+        m = json.load(f)
+    n = {s: sum(r["split"] == s for r in m["scenes"]) for s in ("train", "val", "test")}
+    o = m["options"]
+    return {"text": f"{n['train']} training, {n['val']} validation, {n['test']} test scenes, "
+                    f"{o['size']}x{o['size']}, noisy {','.join(map(str, o['spp']))} spp, "
+                    f"reference {o['ref_spp']} spp",
+            "train": n["train"]}
+
+
+def checkpoint_facts(ckpt_path, model, data_root) -> dict:
+    """What a card and the metadata say about a training checkpoint, from the checkpoint."""
+    raw = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+    st = raw["state"]
+    return {"train_seconds": st["train_s"], "gpu_seconds": st.get("gpu_seconds", 0.0),
+            "train_steps": st["step"],
+            # Runs started before checkpoints named their data set trained on --data.
+            "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(data_root or "unknown")),
+            "params": count_params(model),
+            "train_scenes": st.get("train_scenes", "an unrecorded number of"),
+            "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
+            "guide_from_step": st.get("guide_from_step")}
+
+
+def write_goldens(model, path, gdir):
+    """The parity goldens of a shipped model: inputs and onnxruntime's outputs."""
+    os.makedirs(gdir, exist_ok=True)
+    xs = example_inputs(*GOLDEN_SIZE, seed=11)
+    for n, x in zip(INPUTS, xs):
+        np.save(os.path.join(gdir, n + ".npy"), x.numpy().astype("<f4"))
+    for stale in os.listdir(gdir):
+        if stale.startswith(("filters", "hsv")):
+            os.remove(os.path.join(gdir, stale))
+    for n, o in zip(output_names(model.levels), run_ort(path, xs)):
+        np.save(os.path.join(gdir, n + ".npy"), o.astype("<f4"))
+
+
+def ship_one(a, file, run_name, mode, meas, data):
+    """Exports one run to onnx/FILE.onnx with its metadata, goldens and card."""
+    run = os.path.join(a.runs, run_name)
+    # The committed training checkpoint (train.py): it outlives the session, model.pt
+    # does not.
+    ckpt_path = os.path.join(run, "checkpoint.pt")
+    if not os.path.exists(ckpt_path):
+        raise SystemExit(f"{ckpt_path}: not trained yet (scripts/train-all)")
+    model, arch, width, info = load_checkpoint(ckpt_path)
+    ck = checkpoint_facts(ckpt_path, model, a.data)
+    recon = recon_of(model)
+    overlap = receptive.effective_overlap(model, recon)
+    test_relmse = table(meas, label(arch, width)).get(16, {}).get("RelMSE") if meas else None
+    desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "
+            f"({ck['train_steps']} steps) on temc-render's {ck['dataset']}; a small CPU-trained "
+            "model, not the paper's")
+    meta = metadata(arch, width, recon, dataset=ck["dataset"], steps=ck["train_steps"],
+                    test_relmse=test_relmse, description=desc, tile_overlap=overlap)
+    path = os.path.join(a.onnx, file + ".onnx")
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    diff = export(model, path, meta)
+    size = os.path.getsize(path)
+    if size > MAX_BYTES:
+        raise SystemExit(f"{path}: {size} bytes, over the 20 MiB limit")
+    write_goldens(model, path, os.path.join(a.golden, os.path.basename(file)))
+    with open(os.path.join(a.onnx, file + ".md"), "w") as f:
+        f.write(card(file, run_name, mode, arch, width, ck, read_log(run), size, meas, data,
+                     recon, overlap))
+    print(f"{path}: {size / 2**20:.1f} MiB, onnxruntime vs PyTorch {diff:.1e}, "
+          f"{ck['train_steps']} steps", flush=True)
 
 
 def main(argv=None):
@@ -182,69 +281,9 @@ def main(argv=None):
     ap.add_argument("--data", help="the data set folder (for its settings in the cards)")
     a = ap.parse_args(argv)
     torch.set_num_threads(2)
-    meas = None
-    if a.measurements and os.path.exists(a.measurements):
-        with open(a.measurements) as f:
-            meas = list(csv.DictReader(f))
-    data_opts = "temc-render dataset"
-    if a.data and os.path.exists(os.path.join(a.data, "manifest.json")):
-        with open(os.path.join(a.data, "manifest.json")) as f:
-            m = json.load(f)
-        n = {s: sum(r["split"] == s for r in m["scenes"]) for s in ("train", "val", "test")}
-        o = m["options"]
-        data_opts = (f"{n['train']} training, {n['val']} validation, {n['test']} test scenes, "
-                     f"{o['size']}x{o['size']}, noisy {','.join(map(str, o['spp']))} spp, "
-                     f"reference {o['ref_spp']} spp")
+    meas, data = read_measurements(a.measurements), data_facts(a.data)
     for file, (run_name, mode) in SHIPPED.items():
-        run = os.path.join(a.runs, run_name)
-        # The committed training checkpoint (train.py): it outlives the session, model.pt
-        # does not.
-        ckpt_path = os.path.join(run, "checkpoint.pt")
-        if not os.path.exists(ckpt_path):
-            raise SystemExit(f"{ckpt_path}: not trained yet (scripts/train-all)")
-        model, arch, width, info = load_checkpoint(ckpt_path)
-        raw = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        ck = {"train_seconds": raw["state"]["train_s"], "train_steps": raw["state"]["step"],
-              # Runs started before checkpoints named their data set trained on --data.
-              "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(a.data or "unknown")),
-              "params": count_params(model),
-              "train_scenes": raw["state"].get("train_scenes", "an unrecorded number of"),
-              # Runs from before train.py stored its recipe ran with these (scripts/train-all).
-              "hparams": {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
-                          "rel_weight": 0.0, "target_spp": 0, "loss": "mix", **raw["state"].get("hparams", {})},
-              "guide_from_step": raw["state"].get("guide_from_step")}
-        recon = recon_of(model)
-        overlap = receptive.effective_overlap(model, recon)
-        test_relmse = None
-        if meas:
-            t = table(meas, label(arch, width))
-            test_relmse = t.get(16, {}).get("RelMSE")
-        desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "
-                f"({ck['train_steps']} steps) on temc-render's {ck['dataset']}; a small CPU-trained "
-                "model, not the paper's")
-        meta = metadata(arch, width, recon, dataset=ck["dataset"], steps=ck["train_steps"],
-                        test_relmse=test_relmse, description=desc, tile_overlap=overlap)
-        path = os.path.join(a.onnx, file + ".onnx")
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        diff = export(model, path, meta)
-        size = os.path.getsize(path)
-        if size > MAX_BYTES:
-            raise SystemExit(f"{path}: {size} bytes, over the 20 MiB limit")
-        gdir = os.path.join(a.golden, os.path.basename(file))
-        os.makedirs(gdir, exist_ok=True)
-        xs = example_inputs(*GOLDEN_SIZE, seed=11)
-        for n, x in zip(INPUTS, xs):
-            np.save(os.path.join(gdir, n + ".npy"), x.numpy().astype("<f4"))
-        for stale in os.listdir(gdir):
-            if stale.startswith(("filters", "hsv")):
-                os.remove(os.path.join(gdir, stale))
-        for n, o in zip(output_names(model.levels), run_ort(path, xs)):
-            np.save(os.path.join(gdir, n + ".npy"), o.astype("<f4"))
-        with open(os.path.join(a.onnx, file + ".md"), "w") as f:
-            f.write(card(file, run_name, mode, arch, width, ck, read_log(run), size, meas, data_opts,
-                         recon, overlap))
-        print(f"{path}: {size / 2**20:.1f} MiB, onnxruntime vs PyTorch {diff:.1e}, "
-              f"{ck['train_steps']} steps", flush=True)
+        ship_one(a, file, run_name, mode, meas, data)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,7 @@ import torch
 
 from . import data, shard
 from .loss import ALPHA, noise2noise_loss, training_loss
-from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, count_params
+from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, checkpoint_recon, count_params
 from .reconstruct import reconstruct
 
 CHECKPOINT_LIMIT = 20 * 2**20
@@ -218,9 +218,8 @@ def train(a) -> dict:
              "rng": np.random.default_rng(a.seed).bit_generator.state}
     if os.path.exists(ckpt_path):
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        held_recon = dict(ck.get("recon") or {})
-        upgrade = a.guide and not held_recon.get("guide", False)
-        held_recon.setdefault("guide", False)
+        held_recon = checkpoint_recon(ck)
+        upgrade = a.guide and not held_recon["guide"]
         if upgrade:
             held_recon["guide"] = True
         held = (ck["arch"], ck["width"], held_recon)

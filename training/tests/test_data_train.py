@@ -192,3 +192,21 @@ def test_the_learning_rate_halves_with_training_time():
     assert train.learning_rate(A, 1e9) == 1e-3 * train.LR_FLOOR
     A.lr_half_life = 0.0
     assert train.learning_rate(A, 1e9) == 1e-3
+
+
+def test_a_checkpoint_without_recon_loads_alike_in_train_and_export(dataset, tmp_path):
+    # models.RECON_DEFAULTS fills what a checkpoint's "recon" does not say, for resuming
+    # (train.py) and exporting (export.py) alike: both read the same model from it.
+    run = str(tmp_path / "run")
+    args = ["--data", dataset, "--arch", "ae", "--width", "0.0625", "--run", run,
+            "--crop", "32", "--batch", "2", "--val-minutes", "0", "--threads", "1"]
+    train.main(args + ["--max-steps", "1"])
+    path = os.path.join(run, "checkpoint.pt")
+    ck = torch.load(path, weights_only=False)
+    assert ck["recon"] == train.checkpoint_recon({})
+    del ck["recon"]
+    torch.save(ck, path)
+    model, *_ = export.load_checkpoint(path)
+    assert export.recon_of(model) == train.checkpoint_recon({})
+    train.main(args + ["--max-steps", "2"])
+    assert torch.load(path, weights_only=False)["state"]["step"] == 2

@@ -1,4 +1,6 @@
+import glob
 import math
+import os
 
 import numpy as np
 import onnx
@@ -6,7 +8,7 @@ import pytest
 import torch
 
 from temc_train import export, receptive
-from temc_train.models import ARCHS, build
+from temc_train.models import ARCHS, build, checkpoint_recon
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +155,18 @@ def test_committed_goldens_are_onnxruntime_outputs():
         got = export.run_ort(str(root / "models" / f"{name}.onnx"), xs)
         want = [np.load(g / f"filters{l}.npy") for l in range(len(got))]
         assert export.max_diff(got, want) <= 1e-6, name
+
+
+RUNS = os.path.join(os.path.dirname(__file__), "..", "runs")
+
+
+@pytest.mark.parametrize("run", sorted(glob.glob(os.path.join(RUNS, "*", "checkpoint.pt"))),
+                         ids=lambda p: os.path.basename(os.path.dirname(p)))
+def test_committed_checkpoints_load_with_their_recon(run):
+    # Every committed run, those from before guides (no "guide" in "recon") included,
+    # loads strictly into the model models.checkpoint_recon says it was trained as.
+    raw = torch.load(run, map_location="cpu", weights_only=False)
+    model, arch, width, _ = export.load_checkpoint(run)
+    assert (arch, width) == (raw["arch"], raw["width"])
+    assert export.recon_of(model) == checkpoint_recon(raw)
+    assert checkpoint_recon(raw)["guide"] == raw["recon"].get("guide", False)
