@@ -12,6 +12,7 @@
 
 use std::error::Error;
 use std::path::Path;
+use std::sync::Arc;
 
 use temc::engine::Model;
 use temc::filter::{Device, Filter};
@@ -24,17 +25,11 @@ fn main() -> Result<(), Box<dyn Error>> {
         [_, i, o, m] => (i, o, Some(m)),
         _ => return Err("usage: denoise_exr IN.exr OUT.exr [MODEL.onnx]".into()),
     };
-    let weights = match model {
-        Some(m) => Some(std::fs::read(m).map_err(|e| format!("{m}: {e}"))?),
+    // A model file is parsed once; the filter takes its type (TEMC2, TEMC1, DEMC, AE)
+    // from the model's architecture.
+    let model = match model {
+        Some(m) => Some(Arc::new(Model::from_path(m)?)),
         None => None,
-    };
-    // The filter type must match the model's architecture (TEMC2, TEMC1, DEMC, AE).
-    let kind = match &weights {
-        Some(w) => Model::from_bytes(w)?
-            .info()
-            .architecture
-            .to_ascii_uppercase(),
-        None => "TEMC2".to_string(),
     };
     let image = temc::io::read(Path::new(input))?;
     let (w, h) = (image.width, image.height);
@@ -49,10 +44,10 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     let device = Device::new();
     device.commit()?;
-    let mut filter = Filter::new(&device, &kind)?;
-    if let Some(w) = &weights {
-        filter.set_weights(w);
-    } // else the built-in model of the quality mode (default balanced)
+    let mut filter = match model {
+        Some(m) => Filter::with_model(&device, m)?,
+        None => Filter::new(&device, "TEMC2")?, // the built-in model (balanced by default)
+    };
     filter.set_input_f32("color", &color, w, h)?;
     if let Some(albedo) = &image.albedo {
         filter.set_input_f32("albedo", albedo, w, h)?;

@@ -330,7 +330,8 @@ void temcCommitDevice(TEMCDevice device);
 // this only checks the handle.
 void temcSyncDevice(TEMCDevice device);
 
-// Sets an int (or bool) device parameter: "numThreads" (0 = all cores), "verbose",
+// Sets an int (or bool) device parameter: "numThreads" (0 = all cores; more than the
+// cores are capped at them when the device commits), "verbose",
 // "setAffinity". Unknown names are ignored with a warning (printed when verbose).
 //
 // # Safety

@@ -548,7 +548,8 @@ fn get_device_int(d: &DeviceObj, name: &str) -> i32 {
     }
 }
 
-/// Sets an int (or bool) device parameter: "numThreads" (0 = all cores), "verbose",
+/// Sets an int (or bool) device parameter: "numThreads" (0 = all cores; more than the
+/// cores are capped at them when the device commits), "verbose",
 /// "setAffinity". Unknown names are ignored with a warning (printed when verbose).
 ///
 /// # Safety
@@ -1085,8 +1086,9 @@ pub unsafe extern "C" fn temcUnsetFilterImage(filter: TEMCFilter, name: *const c
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let mut st = f.lock();
-        st.unset_image(&f.device, unsafe { name_arg(name) }?)
+        st.unset_image(&f.device, name)
     })
 }
 
@@ -1146,8 +1148,9 @@ pub unsafe extern "C" fn temcUnsetFilterData(filter: TEMCFilter, name: *const c_
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let mut st = f.lock();
-        st.unset_data(&f.device, unsafe { name_arg(name) }?)
+        st.unset_data(&f.device, name)
     })
 }
 
@@ -1173,8 +1176,9 @@ pub unsafe extern "C" fn temcSetFilterInt(filter: TEMCFilter, name: *const c_cha
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let mut st = f.lock();
-        st.set_int(&f.device, unsafe { name_arg(name) }?, value)
+        st.set_int(&f.device, name, value)
     })
 }
 
@@ -1199,8 +1203,9 @@ pub unsafe extern "C" fn temcGetFilterInt(filter: TEMCFilter, name: *const c_cha
     guarded(0, |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let st = f.lock();
-        st.get_int(&f.device, unsafe { name_arg(name) }?)
+        st.get_int(&f.device, name)
     })
 }
 
@@ -1224,8 +1229,9 @@ pub unsafe extern "C" fn temcSetFilterFloat(filter: TEMCFilter, name: *const c_c
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let mut st = f.lock();
-        st.set_float(&f.device, unsafe { name_arg(name) }?, value)
+        st.set_float(&f.device, name, value)
     })
 }
 
@@ -1238,8 +1244,9 @@ pub unsafe extern "C" fn temcGetFilterFloat(filter: TEMCFilter, name: *const c_c
     guarded(f32::NAN, |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
+        let name = unsafe { name_arg(name) }?;
         let st = f.lock();
-        st.get_float(&f.device, unsafe { name_arg(name) }?)
+        st.get_float(&f.device, name)
     })
 }
 

@@ -203,14 +203,18 @@ pub unsafe fn read3(base: *const u8, layout: &Layout, x: usize, y: usize) -> [f3
     let n = layout.format.channels().min(3);
     let mut out = [0.0; 3];
     for (c, o) in out.iter_mut().enumerate().take(n) {
-        let p = base.add(layout.at(x, y, c));
-        *o = if layout.format.channel_bytes() == 4 {
-            f32::from_ne_bytes(std::ptr::read_unaligned(p as *const [u8; 4]))
-        } else {
-            f16::from_bits(u16::from_ne_bytes(std::ptr::read_unaligned(
-                p as *const [u8; 2],
-            )))
-            .to_f32()
+        // SAFETY: (x, y, c) lies inside the validated layout, so the channel's bytes are
+        // inside the caller's buffer (this function's contract); reads may be unaligned.
+        *o = unsafe {
+            let p = base.add(layout.at(x, y, c));
+            if layout.format.channel_bytes() == 4 {
+                f32::from_ne_bytes(std::ptr::read_unaligned(p as *const [u8; 4]))
+            } else {
+                f16::from_bits(u16::from_ne_bytes(std::ptr::read_unaligned(
+                    p as *const [u8; 2],
+                )))
+                .to_f32()
+            }
         };
     }
     out
@@ -224,14 +228,17 @@ pub unsafe fn read3(base: *const u8, layout: &Layout, x: usize, y: usize) -> [f3
 pub unsafe fn write3(base: *mut u8, layout: &Layout, x: usize, y: usize, v: [f32; 3]) {
     let n = layout.format.channels().min(3);
     for (c, &val) in v.iter().enumerate().take(n) {
-        let p = base.add(layout.at(x, y, c));
-        if layout.format.channel_bytes() == 4 {
-            std::ptr::write_unaligned(p as *mut [u8; 4], val.to_ne_bytes());
-        } else {
-            std::ptr::write_unaligned(
-                p as *mut [u8; 2],
-                f16::from_f32(val).to_bits().to_ne_bytes(),
-            );
+        // SAFETY: as in `read3`; the caller guarantees the pixel is writable and unshared.
+        unsafe {
+            let p = base.add(layout.at(x, y, c));
+            if layout.format.channel_bytes() == 4 {
+                std::ptr::write_unaligned(p as *mut [u8; 4], val.to_ne_bytes());
+            } else {
+                std::ptr::write_unaligned(
+                    p as *mut [u8; 2],
+                    f16::from_f32(val).to_bits().to_ne_bytes(),
+                );
+            }
         }
     }
 }
@@ -301,6 +308,7 @@ mod tests {
         };
         let n = l.validate("x").unwrap();
         let mut buf = vec![0u8; n];
+        // SAFETY: `buf` holds the `n` bytes the layout spans; the pixels are inside it.
         unsafe {
             write3(buf.as_mut_ptr(), &l, 1, 1, [1.0, 2.0, 3.0]);
             assert_eq!(read3(buf.as_ptr(), &l, 1, 1), [1.0, 2.0, 3.0]);
@@ -308,6 +316,7 @@ mod tests {
         }
         let h = Layout::packed(Format::Half3, 1, 1);
         let mut hb = vec![0u8; 6];
+        // SAFETY: one half-float RGB pixel, six bytes.
         unsafe {
             write3(hb.as_mut_ptr(), &h, 0, 0, [0.5, 65504.0, 1e9]);
             assert_eq!(read3(hb.as_ptr(), &h, 0, 0), [0.5, 65504.0, f32::INFINITY]);

@@ -32,6 +32,9 @@
 //! C++ wrapper `include/temc.hpp`) mirrors Intel Open Image Denoise 2.x.
 
 #![warn(missing_docs)]
+// Every unsafe block of the library says why it is sound (tests and examples, which hand
+// the C ABI buffers they own, are exempt).
+#![warn(clippy::undocumented_unsafe_blocks)]
 
 #[cfg(feature = "capi")]
 pub mod capi;

@@ -43,6 +43,9 @@ pub const REACH: usize = 2 * RADIUS * PASSES;
 
 /// Denoises a packed 3-channel aux image of `width` x `height` pixels.
 ///
+/// # Panics
+/// If `image` does not hold `width * height` packed RGB pixels.
+///
 /// ```
 /// use temc::prefilter::{filter_aux, AuxKind};
 /// let flat = vec![0.5f32; 8 * 8 * 3];

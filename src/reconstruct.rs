@@ -68,6 +68,10 @@ pub fn channels(kernel: usize, guide: bool) -> usize {
 /// `rgb` and `albedo` are [3, H, W] planar (albedo is read only when demodulating);
 /// `filters[l]` is [`channels`(k, guide), H / 2^l, W / 2^l] planar. Every output value is finite and in
 /// [0, `LINEAR_MAX`] (LDR: [0, 1]), whatever the logits hold.
+///
+/// # Panics
+/// If `filters` is empty (a model has at least one level) or a slice is shorter than its
+/// shape above.
 pub fn reconstruct(
     p: &Params,
     rgb: &[f32],

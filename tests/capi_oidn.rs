@@ -471,3 +471,29 @@ fn device_errors_are_per_thread() {
     assert_eq!(error(d).0, TEMC_ERROR_NONE);
     temcReleaseDevice(d);
 }
+
+/// A huge thread count (the `capi` fuzz target's out-of-memory finding of 2026-12-02 set
+/// 1.66e9) is capped at the cores: the device commits and denoises, and the setting reads
+/// back as given.
+#[test]
+fn a_huge_thread_count_is_capped_at_the_cores() {
+    let d = temcNewDevice(TEMC_DEVICE_TYPE_CPU);
+    unsafe { temcSetDeviceInt(d, c("numThreads").as_ptr(), i32::MAX) };
+    temcCommitDevice(d);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    let got = unsafe { temcGetDeviceInt(d, c("numThreads").as_ptr()) };
+    assert_eq!(got, i32::MAX);
+    let (w, h) = (16, 12);
+    let color = image(w, h);
+    let mut out = vec![0f32; w * h * 3];
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_NONE, "{msg}");
+    assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}

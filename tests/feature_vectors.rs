@@ -8,7 +8,10 @@
 use serde_json::Value;
 use temc::color::{self, features};
 
-const PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/feature_vectors.json");
+const PATH: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/feature_vectors.json"
+);
 
 fn load() -> Value {
     let text = std::fs::read_to_string(PATH).expect("tests/data/feature_vectors.json");
@@ -48,7 +51,10 @@ fn check_features(doc: &Value, kind: &str, f: impl Fn([f32; 3]) -> [f32; 3]) {
         for (g, w) in got.iter().zip(want) {
             let d = (*g as f64 - w as f64).abs();
             worst = worst.max(d);
-            assert!(d <= tol, "{kind} {input:?}: rust {got:?} vs python {want:?}");
+            assert!(
+                d <= tol,
+                "{kind} {input:?}: rust {got:?} vs python {want:?}"
+            );
         }
     }
     eprintln!("{kind}: largest difference {worst:e}");

@@ -3,24 +3,15 @@
 //! The model is the untrained TEMC-2 test model: these tests are about the machinery,
 //! not about denoising quality.
 
+mod common;
+
+use common::{device, test_model as model_file};
 use temc::color;
-use temc::filter::{Device, Filter};
+use temc::filter::{filter_type_for, Filter};
 use temc::Error;
 
 fn weights() -> Vec<u8> {
     model_file("temc2")
-}
-
-fn model_file(arch: &str) -> Vec<u8> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models");
-    std::fs::read(format!("{dir}/{arch}_w0.0625.onnx")).unwrap()
-}
-
-fn device(threads: usize) -> Device {
-    let d = Device::new();
-    d.set_num_threads(threads);
-    d.commit().unwrap();
-    d
 }
 
 /// A smooth, colourful HDR test image with some structure.
@@ -50,7 +41,7 @@ fn denoise_with(arch: &str, color: &[f32], w: usize, h: usize, threads: usize, t
     let dev = device(threads);
     let model = model_file(arch);
     let mut output = vec![0f32; w * h * 3];
-    let mut f = Filter::new(&dev, &arch.to_uppercase()).unwrap();
+    let mut f = Filter::new(&dev, filter_type_for(arch).unwrap()).unwrap();
     f.set_weights(&model);
     f.set_input_f32("color", color, w, h).unwrap();
     f.set_output_f32(&mut output, w, h).unwrap();

@@ -2,25 +2,15 @@
 //! limits, allocation failure, concurrency, cancellation at random points. The models are
 //! the untrained test models: these tests are about the machinery, not denoising quality.
 
-use std::ffi::CString;
+mod common;
+
 use std::sync::Arc;
 
+use common::{c, device, test_model as model};
 use temc::capi::*;
-use temc::filter::{Device, Filter};
+use temc::filter::{filter_type_for, Filter};
 use temc::image::{Format, Layout};
 use temc::Error;
-
-fn model(arch: &str) -> Vec<u8> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models");
-    std::fs::read(format!("{dir}/{arch}_w0.0625.onnx")).unwrap()
-}
-
-fn device(threads: usize) -> Device {
-    let d = Device::new();
-    d.set_num_threads(threads);
-    d.commit().unwrap();
-    d
-}
 
 fn smooth(w: usize, h: usize) -> Vec<f32> {
     (0..w * h * 3)
@@ -59,7 +49,7 @@ fn rust_denoise(
     let depth_bytes: Option<Vec<u8>> = aux
         .depth
         .map(|d| d.iter().flat_map(|v| v.to_ne_bytes()).collect());
-    let mut f = Filter::new(&dev, &arch.to_uppercase()).unwrap();
+    let mut f = Filter::new(&dev, filter_type_for(arch).unwrap()).unwrap();
     f.set_weights(&weights);
     f.set_input_f32("color", color, w, h).unwrap();
     if let Some(a) = aux.albedo {
@@ -82,10 +72,6 @@ fn rust_denoise(
     out
 }
 
-fn c(s: &str) -> CString {
-    CString::new(s).unwrap()
-}
-
 fn c_error(dev: TEMCDevice) -> TEMCError {
     let mut msg = std::ptr::null();
     unsafe { temcGetDeviceError(dev, &mut msg) }
@@ -97,7 +83,7 @@ fn c_denoise(arch: &str, color: &[f32], w: usize, h: usize, aux: &Aux) -> Vec<f3
     let mut out = vec![-1f32; w * h * 3];
     let dev = temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT);
     temcCommitDevice(dev);
-    let f = unsafe { temcNewFilter(dev, c(&arch.to_uppercase()).as_ptr()) };
+    let f = unsafe { temcNewFilter(dev, c(filter_type_for(arch).unwrap()).as_ptr()) };
     unsafe {
         temcSetSharedFilterData(
             f,
@@ -321,13 +307,21 @@ fn absurd_sizes_are_refused_before_allocation() {
     temcReleaseDevice(d);
 }
 
+/// The memory budget is OIDN's approximate `maxMemoryMB`: tiles shrink until the estimated
+/// peak fits it, down to the smallest tile the model allows. So every budget at or above
+/// that floor is kept, every budget below it runs the smallest tiles, and a bigger budget
+/// never means more tiles. The output is finite either way (an allocation that fails
+/// would be OUT_OF_MEMORY, tested below).
 #[test]
-fn a_tiny_memory_budget_completes_or_fails_cleanly() {
-    let (w, h) = (300, 200);
+fn the_memory_budget_sets_the_tiles_and_bounds_the_estimated_peak() {
+    let (w, h) = (640, 480);
     let color = smooth(w, h);
     let dev = device(2);
     let weights = model("ae");
-    for mb in [0usize, 1, 8, 64] {
+    let mut runs = Vec::new();
+    // Measured on this image: the floor (352-pixel windows, 300 tiles) estimates 209 MB,
+    // 256 MB takes 80 tiles, 1024 MB one.
+    for mb in [0usize, 64, 256, 1024] {
         let mut out = vec![-7f32; w * h * 3];
         let mut f = Filter::new(&dev, "AE").unwrap();
         f.set_weights(&weights);
@@ -335,14 +329,34 @@ fn a_tiny_memory_budget_completes_or_fails_cleanly() {
         f.set_output_f32(&mut out, w, h).unwrap();
         f.set_max_memory_mb(mb);
         f.commit().unwrap();
-        let r = f.execute();
+        let stats = f.execute().unwrap_or_else(|e| panic!("{mb} MB: {e}"));
         drop(f);
-        match r {
-            Ok(_) => assert_finite(&out, &format!("{mb} MB")),
-            Err(Error::OutOfMemory(_)) => assert!(out.iter().all(|v| *v == -7.0)),
-            Err(e) => panic!("{mb} MB: unexpected error {e}"),
+        assert_finite(&out, &format!("{mb} MB"));
+        runs.push((mb, stats.tiles, stats.estimated_peak_bytes));
+    }
+    let (_, min_tiles, floor) = runs[0];
+    for &(mb, tiles, peak) in &runs {
+        let budget = (mb << 20) as f64;
+        if budget >= floor {
+            assert!(
+                peak <= budget,
+                "{mb} MB: estimated peak {peak} bytes, {runs:?}"
+            );
+        } else {
+            assert_eq!(
+                tiles, min_tiles,
+                "{mb} MB is below the floor: smallest tiles"
+            );
         }
     }
+    assert!(
+        runs.windows(2).all(|r| r[1].1 <= r[0].1),
+        "a bigger budget never means more tiles: {runs:?}"
+    );
+    assert!(
+        runs[2].1 < min_tiles && runs[3].1 < runs[2].1,
+        "256 MB holds bigger tiles than the floor, 1024 MB bigger still: {runs:?}"
+    );
 }
 
 #[test]

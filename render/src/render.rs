@@ -55,6 +55,9 @@ pub fn kernel_for(scene: &Scene, settings: &Settings) -> Kernel {
 }
 
 /// Renders `scene` at `settings.spp`.
+///
+/// # Panics
+/// Never in practice: nothing can cancel this render, and it has one checkpoint.
 pub fn render(scene: &Scene, settings: &Settings) -> Layers {
     render_progressive(
         scene,

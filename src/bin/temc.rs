@@ -2,11 +2,12 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 use std::time::Instant;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use temc::engine::Model;
-use temc::filter::{Device, Filter, Quality};
+use temc::filter::{Device, ExecuteStats, Filter, Quality};
 use temc::image::{Format, Layout};
 use temc::io::{self, Buffers};
 
@@ -31,80 +32,75 @@ enum AuxArg {
     Full,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum QualityArg {
-    Fast,
-    Balanced,
-    High,
+/// `--quality`: a name [`Quality::from_name`] knows.
+fn parse_quality(s: &str) -> Result<Quality, String> {
+    Quality::from_name(s)
+        .filter(|q| *q != Quality::Default)
+        .ok_or_else(|| format!("{s:?}: expected fast, balanced or high"))
 }
 
-impl QualityArg {
-    fn quality(self) -> Quality {
-        match self {
-            QualityArg::Fast => Quality::Fast,
-            QualityArg::Balanced => Quality::Balanced,
-            QualityArg::High => Quality::High,
-        }
-    }
+/// `temc denoise`'s arguments.
+#[derive(Args)]
+struct DenoiseArgs {
+    /// Noisy colour: PFM, single-layer EXR, or multi-layer EXR (temc-render or Blender).
+    #[arg(long)]
+    color: PathBuf,
+    /// Albedo (overrides one found in the colour file).
+    #[arg(long)]
+    albedo: Option<PathBuf>,
+    /// Shading normal (overrides one found in the colour file).
+    #[arg(long)]
+    normal: Option<PathBuf>,
+    /// Depth, a one-channel file (overrides one found in the colour file).
+    #[arg(long)]
+    depth: Option<PathBuf>,
+    /// Output file, .pfm or .exr; written atomically.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// A temc ONNX model file (default: the built-in TEMC-2 of --quality).
+    #[arg(long)]
+    model: Option<String>,
+    /// Quality mode: which built-in TEMC-2 runs; ignored with --model.
+    #[arg(long, default_value = "balanced", value_parser = parse_quality)]
+    quality: Quality,
+    /// Input scale (default: automatic exposure).
+    #[arg(long)]
+    input_scale: Option<f32>,
+    /// Worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Memory budget in MB for the whole run (input buffers included).
+    #[arg(long, default_value_t = temc::filter::DEFAULT_MAX_MEMORY_MB)]
+    max_memory_mb: usize,
+    /// Tile core size in pixels (default: from the memory budget).
+    #[arg(long, default_value_t = 0)]
+    tile_size: usize,
+    /// Print timings, tiles and peak memory as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Denoise from the colour alone, ignoring aux layers in the colour file (the
+    /// same as `--aux none`).
+    #[arg(long, conflicts_with_all = ["albedo", "normal", "depth", "aux"])]
+    color_only: bool,
+    /// Which aux layers to use: none, albedo, or full (albedo, normal, depth: those
+    /// present). Layers left out are not read from the colour file.
+    #[arg(long, value_enum, default_value = "full")]
+    aux: AuxArg,
+    /// Make the colour from the colour file's spectral layer (temc-render's
+    /// `spectral.b00`.. channels) through the CIE 1931 observer, instead of its RGB
+    /// layer. Used without asking when a file has a spectral layer and no colour.
+    #[arg(long)]
+    spectral: bool,
+    /// The spectral layer's wavelength range in nm, MIN,MAX, split into equal bands.
+    /// Default: temc-render's layer, 380,780.
+    #[arg(long, value_parser = parse_range)]
+    spectral_range: Option<(f32, f32)>,
 }
 
 #[derive(Subcommand)]
 enum Command {
     /// Denoise an image (PFM or EXR; multi-layer EXR may carry the aux buffers too).
-    Denoise {
-        /// Noisy colour: PFM, single-layer EXR, or multi-layer EXR (temc-render or Blender).
-        #[arg(long)]
-        color: PathBuf,
-        /// Albedo (overrides one found in the colour file).
-        #[arg(long)]
-        albedo: Option<PathBuf>,
-        /// Shading normal (overrides one found in the colour file).
-        #[arg(long)]
-        normal: Option<PathBuf>,
-        /// Depth, a one-channel file (overrides one found in the colour file).
-        #[arg(long)]
-        depth: Option<PathBuf>,
-        /// Output file, .pfm or .exr; written atomically.
-        #[arg(short, long)]
-        output: PathBuf,
-        /// A temc ONNX model file (default: the built-in TEMC-2 of --quality).
-        #[arg(long)]
-        model: Option<String>,
-        /// Quality mode: which built-in TEMC-2 runs; ignored with --model.
-        #[arg(long, value_enum, default_value = "balanced")]
-        quality: QualityArg,
-        /// Input scale (default: automatic exposure).
-        #[arg(long)]
-        input_scale: Option<f32>,
-        /// Worker threads (default: all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Memory budget in MB for the whole run (input buffers included).
-        #[arg(long, default_value_t = temc::filter::DEFAULT_MAX_MEMORY_MB)]
-        max_memory_mb: usize,
-        /// Tile core size in pixels (default: from the memory budget).
-        #[arg(long, default_value_t = 0)]
-        tile_size: usize,
-        /// Print timings, tiles and peak memory as JSON on stdout.
-        #[arg(long)]
-        json: bool,
-        /// Denoise from the colour alone, ignoring aux layers in the colour file (the
-        /// same as `--aux none`).
-        #[arg(long, conflicts_with_all = ["albedo", "normal", "depth", "aux"])]
-        color_only: bool,
-        /// Which aux layers to use: none, albedo, or full (albedo, normal, depth: those
-        /// present). Layers left out are not read from the colour file.
-        #[arg(long, value_enum, default_value = "full")]
-        aux: AuxArg,
-        /// Make the colour from the colour file's spectral layer (temc-render's
-        /// `spectral.b00`.. channels) through the CIE 1931 observer, instead of its RGB
-        /// layer. Used without asking when a file has a spectral layer and no colour.
-        #[arg(long)]
-        spectral: bool,
-        /// The spectral layer's wavelength range in nm, MIN,MAX, split into equal bands.
-        #[arg(long, default_value = "380,780", value_parser = parse_range)]
-        spectral_range: (f32, f32),
-    },
+    Denoise(DenoiseArgs),
     /// Time the filter on a synthetic image: one warm-up run (which builds the plan), then
     /// `--repeat` timed runs, like OIDN's oidnBenchmark.
     Bench {
@@ -142,22 +138,12 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Command::Denoise { max_memory_mb, .. } = &cli.command {
-        if *max_memory_mb < temc::filter::DEFAULT_MAX_MEMORY_MB {
+    if let Command::Denoise(args) = &cli.command {
+        if args.max_memory_mb < temc::filter::DEFAULT_MAX_MEMORY_MB {
             limit_heap_retention();
         }
     }
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("temc: {e}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run(cli: Cli) -> temc::Result<()> {
-    match cli.command {
+    let result = match cli.command {
         Command::Info { model, json } => info(&model, json),
         Command::Bench {
             model,
@@ -168,182 +154,263 @@ fn run(cli: Cli) -> temc::Result<()> {
             max_memory_mb,
             json,
         } => bench(&model, &size, threads, repeat, aux, max_memory_mb, json),
-        Command::Denoise {
-            color,
-            albedo,
-            normal,
-            depth,
-            output,
-            model,
-            quality,
-            input_scale,
-            threads,
-            max_memory_mb,
-            tile_size,
-            json,
-            color_only,
-            aux: aux_arg,
-            spectral,
-            spectral_range,
-        } => {
-            let t0 = Instant::now();
-            let mut bufs = io::read(&color)?;
-            colour_from_spectral(&mut bufs, &color, spectral, spectral_range)?;
-            let aux_arg = if color_only { AuxArg::None } else { aux_arg };
-            if aux_arg != AuxArg::Full {
-                (bufs.normal, bufs.depth) = (None, None);
-            }
-            if aux_arg == AuxArg::None {
-                bufs.albedo = None;
-            }
-            if bufs.color.is_none() {
-                return Err(temc::Error::InvalidArgument(format!(
-                    "{}: no colour channels found",
-                    color.display()
-                )));
-            }
-            let mut aux = |path: &Option<PathBuf>,
-                           pick: fn(Buffers) -> Option<Vec<f32>>,
-                           what: &str|
-             -> temc::Result<()> {
-                let Some(p) = path else { return Ok(()) };
-                let b = io::read(p)?;
-                if (b.width, b.height) != (bufs.width, bufs.height) {
-                    return Err(temc::Error::InvalidArgument(format!(
-                        "{}: {what} is {}x{}, colour is {}x{}",
-                        p.display(),
-                        b.width,
-                        b.height,
-                        bufs.width,
-                        bufs.height
-                    )));
-                }
-                let v = pick(b).ok_or_else(|| {
-                    temc::Error::InvalidArgument(format!(
-                        "{}: no {what} channels found",
-                        p.display()
-                    ))
-                })?;
-                match what {
-                    "albedo" => bufs.albedo = Some(v),
-                    "normal" => bufs.normal = Some(v),
-                    _ => bufs.depth = Some(v),
-                }
-                Ok(())
-            };
-            if aux_arg != AuxArg::None {
-                aux(&albedo, |b| b.albedo.or(b.color), "albedo")?;
-            }
-            if aux_arg == AuxArg::Full {
-                aux(&normal, |b| b.normal.or(b.color), "normal")?;
-                aux(&depth, |b| b.depth, "depth")?;
-            }
-            let read_s = t0.elapsed().as_secs_f64();
-
-            // No --model: the built-in TEMC-2 that --quality picks.
-            let (weights, kind) = match &model {
-                Some(m) => {
-                    let (w, k) = read_model(Path::new(m))?;
-                    (Some(w), k)
-                }
-                None => (None, "TEMC2".to_string()),
-            };
-
-            let device = Device::new();
-            device.set_num_threads(threads);
-            device.commit()?;
-            let (w, h) = (bufs.width, bufs.height);
-            // Aux buffers are noise-free guides: half floats keep them at half the memory.
-            let to_half = |v: Option<Vec<f32>>| {
-                v.map(|v| v.into_iter().map(half::f16::from_f32).collect::<Vec<_>>())
-            };
-            let color_buf = bufs.color.take().unwrap_or_default();
-            let (albedo_h, normal_h, depth_h) = (
-                to_half(bufs.albedo.take()),
-                to_half(bufs.normal.take()),
-                to_half(bufs.depth.take()),
-            );
-            let held = color_buf.len() * 4
-                + [&albedo_h, &normal_h, &depth_h]
-                    .iter()
-                    .map(|b| b.as_ref().map_or(0, |v| v.len() * 2))
-                    .sum::<usize>();
-            // --max-memory-mb bounds the whole run: the filter gets what the buffers held
-            // here leave of it.
-            let filter_mb = max_memory_mb.saturating_sub(held >> 20).max(64);
-            let t1 = Instant::now();
-            let commit_s;
-            let (out, stats) = {
-                let mut f = Filter::new(&device, &kind)?;
-                if let Some(w) = &weights {
-                    f.set_weights(w);
-                }
-                f.set_input_f32("color", &color_buf, w, h)?;
-                for (name, buf, format) in [
-                    ("albedo", &albedo_h, Format::Half3),
-                    ("normal", &normal_h, Format::Half3),
-                    ("depth", &depth_h, Format::Half),
-                ] {
-                    if let Some(v) = buf {
-                        // SAFETY: f16 is two plain bytes; the view lives as long as `v`.
-                        let bytes = unsafe {
-                            std::slice::from_raw_parts(v.as_ptr() as *const u8, v.len() * 2)
-                        };
-                        f.set_input(name, bytes, Layout::packed(format, w, h))?;
-                    }
-                }
-                f.set_quality(quality.quality());
-                if let Some(s) = input_scale {
-                    f.set_input_scale(s)?;
-                }
-                f.set_max_memory_mb(filter_mb);
-                f.set_tile_size(tile_size);
-                let bar = progress_bar(json);
-                if let Some(bar) = bar.clone() {
-                    f.set_progress_monitor(move |p| {
-                        bar.set_position((p * 1000.0) as u64);
-                        true
-                    });
-                }
-                f.commit()?;
-                commit_s = t1.elapsed().as_secs_f64();
-                let result = f.execute_to_vec()?;
-                if let Some(bar) = bar {
-                    bar.finish_and_clear();
-                }
-                result
-            };
-            let denoise_s = t1.elapsed().as_secs_f64();
-            let t2 = Instant::now();
-            io::write_rgb(&output, w, h, &out)?;
-            let write_s = t2.elapsed().as_secs_f64();
-            if json {
-                let report = serde_json::json!({
-                    "color": color, "output": output,
-                    "model": model.clone().unwrap_or_else(|| format!("built-in TEMC-2 {}",
-                        quality.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()))),
-                    "width": w, "height": h,
-                    "aux": {"albedo": albedo_h.is_some(), "normal": normal_h.is_some(), "depth": depth_h.is_some()},
-                    "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
-                    "cost_ratio": stats.cost_ratio, "threads": stats.threads,
-                    "input_scale": stats.input_scale,
-                    "seconds": {"read": read_s, "denoise": denoise_s, "commit": commit_s,
-                                "execute": denoise_s - commit_s, "write": write_s},
-                    "estimated_peak_mb": stats.estimated_peak_bytes / 1e6,
-                    "peak_rss_mb": peak_rss_mb(),
-                });
-                println!("{report}");
-            } else {
-                eprintln!(
-                    "temc: {} -> {} ({w}x{h}, {} tile(s), {denoise_s:.2} s)",
-                    color.display(),
-                    output.display(),
-                    stats.tiles
-                );
-            }
-            Ok(())
+        Command::Denoise(args) => denoise(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("temc: {e}");
+            ExitCode::FAILURE
         }
     }
+}
+
+/// Seconds spent in each stage of `temc denoise`, for `--json`.
+struct Timings {
+    read: f64,
+    commit: f64,
+    denoise: f64,
+    write: f64,
+}
+
+/// `temc denoise`: read the inputs, configure the filter, run it, write, report.
+fn denoise(args: &DenoiseArgs) -> temc::Result<()> {
+    let t0 = Instant::now();
+    let inputs = read_inputs(args)?;
+    let read = t0.elapsed().as_secs_f64();
+    let device = Device::new();
+    device.set_num_threads(args.threads);
+    device.commit()?;
+    let t1 = Instant::now();
+    // Parsed once: the filter takes its type from the model and commits it as it is.
+    let model = args
+        .model
+        .as_ref()
+        .map(|m| Model::from_path(m).map(Arc::new))
+        .transpose()?;
+    let (out, stats, commit) = run_filter(&device, model, &inputs, args)?;
+    let denoise = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    io::write_rgb(&args.output, inputs.width, inputs.height, &out)?;
+    let times = Timings {
+        read,
+        commit,
+        denoise,
+        write: t2.elapsed().as_secs_f64(),
+    };
+    report(args, &inputs, &stats, &times);
+    Ok(())
+}
+
+/// The images a denoise reads: colour as f32, the aux buffers as half floats (they are
+/// noise-free guides: half the memory, and the network sees half precision anyway).
+struct Inputs {
+    width: usize,
+    height: usize,
+    color: Vec<f32>,
+    albedo: Option<Vec<half::f16>>,
+    normal: Option<Vec<half::f16>>,
+    depth: Option<Vec<half::f16>>,
+}
+
+impl Inputs {
+    fn bytes(&self) -> usize {
+        let half = |b: &Option<Vec<half::f16>>| b.as_ref().map_or(0, |v| v.len() * 2);
+        self.color.len() * 4 + half(&self.albedo) + half(&self.normal) + half(&self.depth)
+    }
+}
+
+/// The aux buffers a separate file can supply.
+#[derive(Clone, Copy)]
+enum AuxKind {
+    Albedo,
+    Normal,
+    Depth,
+}
+
+impl AuxKind {
+    fn name(self) -> &'static str {
+        match self {
+            AuxKind::Albedo => "albedo",
+            AuxKind::Normal => "normal",
+            AuxKind::Depth => "depth",
+        }
+    }
+
+    /// The buffer in `b` that holds this kind: its own layer, else (albedo, normal) the
+    /// colour of a file written for that buffer alone.
+    fn take(self, b: Buffers) -> Option<Vec<f32>> {
+        match self {
+            AuxKind::Albedo => b.albedo.or(b.color),
+            AuxKind::Normal => b.normal.or(b.color),
+            AuxKind::Depth => b.depth,
+        }
+    }
+
+    fn slot(self, b: &mut Buffers) -> &mut Option<Vec<f32>> {
+        match self {
+            AuxKind::Albedo => &mut b.albedo,
+            AuxKind::Normal => &mut b.normal,
+            AuxKind::Depth => &mut b.depth,
+        }
+    }
+}
+
+/// Reads the colour file and the aux files `args` name, keeping the layers `--aux` asks for.
+fn read_inputs(args: &DenoiseArgs) -> temc::Result<Inputs> {
+    let mut bufs = io::read(&args.color)?;
+    let range = args.spectral_range.unwrap_or((
+        temc::color::layers::SPECTRAL_MIN_NM,
+        temc::color::layers::SPECTRAL_MAX_NM,
+    ));
+    colour_from_spectral(&mut bufs, &args.color, args.spectral, range)?;
+    let aux = if args.color_only {
+        AuxArg::None
+    } else {
+        args.aux
+    };
+    if aux != AuxArg::Full {
+        (bufs.normal, bufs.depth) = (None, None);
+    }
+    if aux == AuxArg::None {
+        bufs.albedo = None;
+    }
+    let Some(color) = bufs.color.take() else {
+        return Err(temc::Error::InvalidArgument(format!(
+            "{}: no colour channels found",
+            args.color.display()
+        )));
+    };
+    let files = [
+        (AuxKind::Albedo, &args.albedo, aux != AuxArg::None),
+        (AuxKind::Normal, &args.normal, aux == AuxArg::Full),
+        (AuxKind::Depth, &args.depth, aux == AuxArg::Full),
+    ];
+    for (kind, path, wanted) in files {
+        if let (Some(path), true) = (path, wanted) {
+            *kind.slot(&mut bufs) = Some(read_aux(path, kind, (bufs.width, bufs.height))?);
+        }
+    }
+    let to_half = |v: Option<Vec<f32>>| v.map(|v| v.into_iter().map(half::f16::from_f32).collect());
+    Ok(Inputs {
+        width: bufs.width,
+        height: bufs.height,
+        color,
+        albedo: to_half(bufs.albedo),
+        normal: to_half(bufs.normal),
+        depth: to_half(bufs.depth),
+    })
+}
+
+/// One aux buffer from its own file, which must match the colour's size.
+fn read_aux(path: &Path, kind: AuxKind, size: (usize, usize)) -> temc::Result<Vec<f32>> {
+    let b = io::read(path)?;
+    if (b.width, b.height) != size {
+        return Err(temc::Error::InvalidArgument(format!(
+            "{}: {} is {}x{}, colour is {}x{}",
+            path.display(),
+            kind.name(),
+            b.width,
+            b.height,
+            size.0,
+            size.1
+        )));
+    }
+    kind.take(b).ok_or_else(|| {
+        temc::Error::InvalidArgument(format!(
+            "{}: no {} channels found",
+            path.display(),
+            kind.name()
+        ))
+    })
+}
+
+/// Configures a filter for `inputs` (the model's own type, or the built-in TEMC-2 of
+/// `--quality`), runs it, and returns the result, its statistics and the commit seconds.
+fn run_filter(
+    device: &Device,
+    model: Option<Arc<Model>>,
+    inputs: &Inputs,
+    args: &DenoiseArgs,
+) -> temc::Result<(Vec<f32>, ExecuteStats, f64)> {
+    let t = Instant::now();
+    let (w, h) = (inputs.width, inputs.height);
+    let mut f = match model {
+        Some(m) => Filter::with_model(device, m)?,
+        None => Filter::new(device, "TEMC2")?,
+    };
+    f.set_input_f32("color", &inputs.color, w, h)?;
+    let aux = [
+        ("albedo", &inputs.albedo, Format::Half3),
+        ("normal", &inputs.normal, Format::Half3),
+        ("depth", &inputs.depth, Format::Half),
+    ];
+    for (name, buf, format) in aux {
+        if let Some(v) = buf {
+            // SAFETY: f16 is two plain bytes; the view lives as long as `inputs`.
+            let bytes = unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, v.len() * 2) };
+            f.set_input(name, bytes, Layout::packed(format, w, h))?;
+        }
+    }
+    f.set_quality(args.quality);
+    if let Some(s) = args.input_scale {
+        f.set_input_scale(s)?;
+    }
+    // --max-memory-mb bounds the whole run: the filter gets what the buffers held here
+    // leave of it.
+    f.set_max_memory_mb(
+        args.max_memory_mb
+            .saturating_sub(inputs.bytes() >> 20)
+            .max(64),
+    );
+    f.set_tile_size(args.tile_size);
+    let bar = progress_bar(args.json);
+    if let Some(bar) = bar.clone() {
+        f.set_progress_monitor(move |p| {
+            bar.set_position((p * 1000.0) as u64);
+            true
+        });
+    }
+    f.commit()?;
+    let commit = t.elapsed().as_secs_f64();
+    let (out, stats) = f.execute_to_vec()?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    Ok((out, stats, commit))
+}
+
+/// One line on stderr, or with `--json` the whole record on stdout.
+fn report(args: &DenoiseArgs, inputs: &Inputs, stats: &ExecuteStats, t: &Timings) {
+    let (w, h) = (inputs.width, inputs.height);
+    if !args.json {
+        eprintln!(
+            "temc: {} -> {} ({w}x{h}, {} tile(s), {:.2} s)",
+            args.color.display(),
+            args.output.display(),
+            stats.tiles,
+            t.denoise
+        );
+        return;
+    }
+    let model = args
+        .model
+        .clone()
+        .unwrap_or_else(|| format!("built-in TEMC-2 {}", args.quality.name()));
+    let report = serde_json::json!({
+        "color": args.color, "output": args.output, "model": model,
+        "width": w, "height": h,
+        "aux": {"albedo": inputs.albedo.is_some(), "normal": inputs.normal.is_some(),
+                "depth": inputs.depth.is_some()},
+        "tiles": stats.tiles, "window": [stats.window.0, stats.window.1],
+        "cost_ratio": stats.cost_ratio, "threads": stats.threads,
+        "input_scale": stats.input_scale,
+        "seconds": {"read": t.read, "denoise": t.denoise, "commit": t.commit,
+                    "execute": t.denoise - t.commit, "write": t.write},
+        "estimated_peak_mb": stats.estimated_peak_bytes / 1e6,
+        "peak_rss_mb": peak_rss_mb(),
+    });
+    println!("{report}");
 }
 
 /// `MIN,MAX` in nm.
@@ -436,21 +503,8 @@ fn info(model: &Path, json: bool) -> temc::Result<()> {
     Ok(())
 }
 
-/// A model file's bytes and the filter type its architecture needs.
-fn read_model(path: &Path) -> temc::Result<(Vec<u8>, String)> {
-    let weights = std::fs::read(path).map_err(|source| temc::Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let kind = Model::from_bytes(&weights)?
-        .info()
-        .architecture
-        .to_ascii_uppercase();
-    Ok((weights, kind))
-}
-
 fn bench(
-    model: &Path,
+    path: &Path,
     size: &str,
     threads: usize,
     repeat: usize,
@@ -463,7 +517,7 @@ fn bench(
         .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
         .filter(|&(w, h)| w > 0 && h > 0)
         .ok_or_else(|| temc::Error::InvalidArgument(format!("--size {size:?}: expected WxH")))?;
-    let (weights, kind) = read_model(model)?;
+    let model = Arc::new(Model::from_path(path)?);
     // A deterministic noisy gradient; the timing does not depend on the content.
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut noise = move || {
@@ -481,8 +535,8 @@ fn bench(
     let device = Device::new();
     device.set_num_threads(threads);
     device.commit()?;
-    let mut f = Filter::new(&device, &kind)?;
-    f.set_weights(&weights);
+    let mut f = Filter::with_model(&device, model.clone())?;
+    let kind = f.kind();
     f.set_input_f32("color", &color, w, h)?;
     if aux != AuxArg::None {
         f.set_input_f32("albedo", &albedo, w, h)?;
@@ -510,12 +564,8 @@ fn bench(
     let (min, median) = (times[0], times[times.len() / 2]);
     if json {
         let report = serde_json::json!({
-            "model": model, "architecture": kind, "width": w, "height": h,
-            "threads": if threads == 0 {
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            } else {
-                threads
-            },
+            "model": path, "architecture": kind, "width": w, "height": h,
+            "threads": device.effective_threads(),
             "aux": match aux { AuxArg::None => "none", AuxArg::Albedo => "albedo", AuxArg::Full => "full" },
             "warmup_seconds": warmup_s, "seconds": times, "min_seconds": min,
             "median_seconds": median,

@@ -44,9 +44,8 @@ enum Mode {
     Prefilter(AuxKind),
 }
 
-/// Default band range for "spectral": the visible range the renderers sample.
-const SPECTRAL_MIN_NM: f32 = 380.0;
-const SPECTRAL_MAX_NM: f32 = 780.0;
+// Default band range for "spectral": temc-render's spectral layer.
+use crate::color::layers::{SPECTRAL_MAX_NM, SPECTRAL_MIN_NM};
 
 /// The state behind a C filter handle.
 pub(crate) struct FilterState {

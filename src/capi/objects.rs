@@ -133,6 +133,7 @@ pub(crate) struct BufferObj {
 // SAFETY: the buffer's bytes are plain memory; concurrent access to them is the C
 // caller's responsibility, as in OIDN. The struct itself is immutable after creation.
 unsafe impl Send for BufferObj {}
+// SAFETY: as for Send.
 unsafe impl Sync for BufferObj {}
 
 /// Owned buffers are aligned for any SIMD load the core might use.

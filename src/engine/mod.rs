@@ -315,7 +315,10 @@ impl Model {
                 .map_err(|e| Error::Inference(format!("{e:#}")))?;
             tensors[self.input_order[k]] = Some(t.into());
         }
-        let inputs: TVec<TValue> = tensors.into_iter().map(|t| t.expect("all set")).collect();
+        let inputs: TVec<TValue> = tensors
+            .into_iter()
+            .map(|t| t.ok_or_else(|| Error::Model("a network input was not set".into())))
+            .collect::<Result<_, _>>()?;
         let out = plan
             .run(inputs)
             .map_err(|e| Error::Inference(format!("{h}x{w}: {e:#}")))?;

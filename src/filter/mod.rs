@@ -49,6 +49,31 @@ pub enum Quality {
 }
 
 impl Quality {
+    /// The names [`Quality::from_name`] accepts, in the order of the numeric values.
+    pub const NAMES: [&'static str; 4] = ["default", "fast", "balanced", "high"];
+
+    /// Parses a quality name as the CLI and the demo spell it: "fast", "balanced",
+    /// "high" or "default".
+    pub fn from_name(name: &str) -> Option<Self> {
+        Some(match name {
+            "default" => Quality::Default,
+            "fast" => Quality::Fast,
+            "balanced" => Quality::Balanced,
+            "high" => Quality::High,
+            _ => return None,
+        })
+    }
+
+    /// The name [`Quality::from_name`] parses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quality::Default => "default",
+            Quality::Fast => "fast",
+            Quality::Balanced => "balanced",
+            Quality::High => "high",
+        }
+    }
+
     /// The quality with this numeric value.
     pub fn from_raw(v: i32) -> Option<Self> {
         Some(match v {
@@ -66,6 +91,27 @@ pub const DEFAULT_MAX_MEMORY_MB: usize = 2048;
 
 /// Filter types: the model architectures.
 pub const FILTER_TYPES: [&str; 4] = ["TEMC2", "TEMC1", "DEMC", "AE"];
+
+/// The filter type that runs a model of `architecture` (a model's `temc.architecture`,
+/// e.g. "temc2" -> "TEMC2").
+pub fn filter_type_for(architecture: &str) -> Result<&'static str, Error> {
+    FILTER_TYPES
+        .iter()
+        .find(|k| k.eq_ignore_ascii_case(architecture))
+        .copied()
+        .ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "architecture {architecture:?} has no filter type (expected one of {FILTER_TYPES:?})"
+            ))
+        })
+}
+
+/// User weights: ONNX bytes (parsed at commit) or a model parsed already.
+#[derive(Clone)]
+enum Weights {
+    Onnx(Arc<[u8]>),
+    Parsed(Arc<Model>),
+}
 
 struct DeviceState {
     num_threads: usize,
@@ -101,7 +147,8 @@ impl Device {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Threads to use; 0 (the default) means all available cores.
+    /// Threads to use; 0 (the default) means all available cores, and more than the
+    /// cores are capped at them (see [`Device::effective_threads`]).
     pub fn set_num_threads(&self, n: usize) {
         let mut s = self.lock();
         s.num_threads = n;
@@ -123,14 +170,27 @@ impl Device {
         self.lock().verbose
     }
 
+    /// The threads the pool gets: the setting, at most one per core. More threads than
+    /// cores only add contention to a CPU-bound denoise, and a huge setting (a fuzzer
+    /// found 1.66e9) would otherwise spawn threads until memory runs out.
+    pub fn effective_threads(&self) -> usize {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        match self.lock().num_threads {
+            0 => cores,
+            n => n.min(cores),
+        }
+    }
+
     /// Builds the thread pool for the current settings.
     pub fn commit(&self) -> Result<(), Error> {
+        let n = self.effective_threads();
         let mut s = self.lock();
-        let n = if s.num_threads == 0 {
-            std::thread::available_parallelism().map_or(1, |n| n.get())
-        } else {
-            s.num_threads
-        };
+        if s.verbose > 0 && s.num_threads > n {
+            eprintln!(
+                "temc: numThreads {} capped at {n} (the cores)",
+                s.num_threads
+            );
+        }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .thread_name(|i| format!("temc-{i}"))
@@ -210,6 +270,7 @@ pub(crate) struct RawImage {
 // SAFETY: a RawImage is only dereferenced during execute, under the contract of the setter
 // that created it (Rust borrows tied to the filter's lifetime, or the C caller's promise).
 unsafe impl Send for RawImage {}
+// SAFETY: as for Send.
 unsafe impl Sync for RawImage {}
 
 type Monitor<'a> = Box<dyn FnMut(f64) -> bool + Send + 'a>;
@@ -224,7 +285,7 @@ pub struct Filter<'a> {
     max_memory_mb: usize,
     tile_size: usize,
     input_scale: Option<f32>,
-    weights: Option<Arc<[u8]>>,
+    weights: Option<Weights>,
     monitor: Option<Monitor<'a>>,
     committed: Option<Arc<Model>>,
     /// The weights the committed model was loaded from, to skip reloading.
@@ -255,6 +316,14 @@ impl<'a> Filter<'a> {
             loaded_from: None,
             _borrows: PhantomData,
         })
+    }
+
+    /// A filter for a parsed `model`: the filter type comes from the model's architecture,
+    /// and commit uses the model as it is (no second parse).
+    pub fn with_model(device: &Device, model: Arc<Model>) -> Result<Self, Error> {
+        let mut f = Self::new(device, filter_type_for(&model.info().architecture)?)?;
+        f.weights = Some(Weights::Parsed(model));
+        Ok(f)
     }
 
     /// The filter type.
@@ -392,7 +461,9 @@ impl<'a> Filter<'a> {
         self.changed();
     }
 
-    /// Memory budget in MB for one execution (tiles shrink to fit it).
+    /// Memory budget in MB for one execution: tiles shrink until the estimated peak fits
+    /// it, down to the smallest tile the model allows (below that floor the budget is
+    /// exceeded: like OIDN's `maxMemoryMB`, it is approximate).
     pub fn set_max_memory_mb(&mut self, mb: usize) {
         self.max_memory_mb = mb;
         self.changed();
@@ -423,7 +494,7 @@ impl<'a> Filter<'a> {
 
     /// Uses a user ONNX model (with temc metadata) instead of the built-in weights.
     pub fn set_weights(&mut self, onnx: &[u8]) {
-        self.weights = Some(Arc::from(onnx));
+        self.weights = Some(Weights::Onnx(Arc::from(onnx)));
         self.changed();
     }
 
@@ -527,20 +598,22 @@ impl<'a> Filter<'a> {
     /// and checks it matches the filter type. Required after any change, before execute.
     pub fn commit(&mut self) -> Result<(), Error> {
         self.device.pool()?;
-        let Some(weights) = self
-            .weights
-            .clone()
-            .or_else(|| builtin::shared(self.kind, self.quality))
-        else {
-            return Err(Error::InvalidOperation(format!(
-                "no built-in weights for {}: the baselines ship as files in onnx/baselines/; \
-                 set \"weights\" to a temc ONNX model",
-                self.kind
-            )));
+        let weights = match self.weights.clone() {
+            Some(w) => w,
+            None => Weights::Onnx(builtin::shared(self.kind, self.quality).ok_or_else(|| {
+                Error::InvalidOperation(format!(
+                    "no built-in weights for {}: the baselines ship as files in \
+                     onnx/baselines/; set \"weights\" to a temc ONNX model",
+                    self.kind
+                ))
+            })?),
         };
-        let model = match (&self.committed, &self.loaded_from) {
-            (Some(m), Some(w)) if Arc::ptr_eq(w, &weights) => m.clone(),
-            _ => Arc::new(Model::from_bytes(&weights)?),
+        let (model, bytes) = match weights {
+            Weights::Parsed(m) => (m, None),
+            Weights::Onnx(w) => match (&self.committed, &self.loaded_from) {
+                (Some(m), Some(prev)) if Arc::ptr_eq(prev, &w) => (m.clone(), Some(w)),
+                _ => (Arc::new(Model::from_bytes(&w)?), Some(w)),
+            },
         };
         let arch = &model.info().architecture;
         if !arch.eq_ignore_ascii_case(self.kind) {
@@ -550,7 +623,7 @@ impl<'a> Filter<'a> {
             )));
         }
         self.committed = Some(model);
-        self.loaded_from = Some(weights);
+        self.loaded_from = bytes;
         Ok(())
     }
 
@@ -580,7 +653,8 @@ impl<'a> Filter<'a> {
             ));
         }
         let (stats, v) = self.run()?;
-        Ok((v.expect("no output image: the result is returned"), stats))
+        let v = v.ok_or_else(|| Error::InvalidOperation("the execution wrote no result".into()))?;
+        Ok((v, stats))
     }
 
     fn run(&mut self) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {

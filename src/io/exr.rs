@@ -62,6 +62,33 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
         |e: String| TemcError::InvalidArgument(format!("{name}: not a readable OpenEXR file: {e}"));
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| bad(e.to_string()))?;
+    check_headers(&meta, bytes.len()).map_err(bad)?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| bad(e.to_string()))?;
+    let (size, channels) = decode_channels(&image, name)?;
+    let out = assemble(size, channels);
+    if out.color.is_none()
+        && out.depth.is_none()
+        && out.albedo.is_none()
+        && out.normal.is_none()
+        && out.spectral.is_none()
+    {
+        return Err(TemcError::InvalidArgument(format!(
+            "{name}: no colour, albedo, normal, depth or spectral channels recognised"
+        )));
+    }
+    Ok(out)
+}
+
+/// Refuses layers too large for temc and headers that claim more samples than the file
+/// can hold, before the decoder allocates for them.
+fn check_headers(meta: &exr::meta::MetaData, file_bytes: usize) -> std::result::Result<(), String> {
     let mut total = 0usize;
     for header in &meta.headers {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
@@ -72,30 +99,29 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
             || px > crate::image::MAX_PIXELS
             || header.deep
         {
-            return Err(bad(format!("unsupported layer of {w}x{h} pixels")));
+            return Err(format!("unsupported layer of {w}x{h} pixels"));
         }
     }
-    // Decoded samples cannot exceed what the file can hold: deflate, the strongest of
-    // EXR's codecs, expands at most about 1032:1, so half-float data stays under ~516
-    // samples per byte. A header claiming more is lying, and is refused before the
-    // decoder allocates for it.
-    if total > bytes.len().saturating_mul(1024).max(1 << 16) {
-        return Err(bad(format!(
-            "{total} samples cannot come from {} bytes",
-            bytes.len()
-        )));
+    // Deflate, the strongest of EXR's codecs, expands at most about 1032:1, so half-float
+    // data stays under ~516 samples per byte. A header claiming more is lying.
+    if total > file_bytes.saturating_mul(1024).max(1 << 16) {
+        return Err(format!(
+            "{total} samples cannot come from {file_bytes} bytes"
+        ));
     }
-    let image = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| bad(e.to_string()))?;
+    Ok(())
+}
+
+/// (pass, channel letter) -> samples.
+type Channels = HashMap<(String, String), Vec<f32>>;
+
+/// Every channel of every layer, by pass and letter; all layers must share one size.
+fn decode_channels(
+    image: &exr::image::FlatImage,
+    name: &str,
+) -> std::result::Result<((usize, usize), Channels), TemcError> {
     let mut size = None;
-    // (pass, channel letter) -> samples
-    let mut channels: HashMap<(String, String), Vec<f32>> = HashMap::new();
+    let mut channels = Channels::new();
     for layer in &image.layer_data {
         let (w, h) = (layer.size.width(), layer.size.height());
         match size {
@@ -118,26 +144,22 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
             channels.insert(split(&full), samples(&ch.sample_data));
         }
     }
-    let (width, height) =
-        size.ok_or_else(|| TemcError::InvalidArgument(format!("{name}: no layers")))?;
+    let size = size.ok_or_else(|| TemcError::InvalidArgument(format!("{name}: no layers")))?;
+    Ok((size, channels))
+}
+
+/// The buffers temc knows, found among `channels` by their pass names and letters.
+fn assemble((width, height): (usize, usize), channels: Channels) -> Buffers {
     let find3 = |passes: &[&str], letters: [&[&str]; 3]| -> Option<Vec<f32>> {
-        for pass in passes {
+        passes.iter().find_map(|pass| {
             let pick = |options: &[&str]| {
                 options
                     .iter()
                     .find_map(|l| channels.get(&(pass.to_string(), l.to_string())))
             };
-            if let (Some(a), Some(b), Some(c)) =
-                (pick(letters[0]), pick(letters[1]), pick(letters[2]))
-            {
-                let mut v = Vec::with_capacity(a.len() * 3);
-                for i in 0..a.len() {
-                    v.extend([a[i], b[i], c[i]]);
-                }
-                return Some(v);
-            }
-        }
-        None
+            let (a, b, c) = (pick(letters[0])?, pick(letters[1])?, pick(letters[2])?);
+            Some((0..a.len()).flat_map(|i| [a[i], b[i], c[i]]).collect())
+        })
     };
     let rgb: [&[&str]; 3] = [&["R"], &["G"], &["B"]];
     let xyz: [&[&str]; 3] = [&["X", "R"], &["Y", "G"], &["Z", "B"]];
@@ -155,9 +177,8 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
     let bands = (0..).take_while(|&b| band(b).is_some()).count();
     if bands > 0 {
         let planes: Vec<&Vec<f32>> = (0..bands).filter_map(band).collect();
-        let px = width * height;
         out.spectral = Some(
-            (0..px)
+            (0..width * height)
                 .flat_map(|i| planes.iter().map(move |p| p[i]))
                 .collect(),
         );
@@ -171,17 +192,7 @@ pub fn parse(bytes: &[u8], name: &str) -> std::result::Result<Buffers, TemcError
     if out.depth.is_none() && channels.len() == 1 && out.color.is_none() {
         out.depth = channels.into_values().next();
     }
-    if out.color.is_none()
-        && out.depth.is_none()
-        && out.albedo.is_none()
-        && out.normal.is_none()
-        && out.spectral.is_none()
-    {
-        return Err(TemcError::InvalidArgument(format!(
-            "{name}: no colour, albedo, normal, depth or spectral channels recognised"
-        )));
-    }
-    Ok(out)
+    out
 }
 
 /// Writes interleaved RGB as a 32-bit float EXR (not atomic; see [`super::write_rgb`]).

@@ -1,8 +1,32 @@
-//! Helpers shared by the integration tests: reading the golden .npy tensors.
+//! Helpers shared by the integration tests: the untrained test models, a committed
+//! device, C strings, and reading the golden .npy tensors.
 
 #![allow(dead_code)]
 
+use std::ffi::CString;
 use std::path::Path;
+
+use temc::filter::Device;
+
+/// The untrained test model of `arch` ("temc2", "temc1", "demc", "ae") as ONNX bytes:
+/// for tests of the machinery, not of denoising quality.
+pub fn test_model(arch: &str) -> Vec<u8> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/models");
+    std::fs::read(format!("{dir}/{arch}_w0.0625.onnx")).unwrap()
+}
+
+/// A committed device with `threads` threads (0 = all cores).
+pub fn device(threads: usize) -> Device {
+    let d = Device::new();
+    d.set_num_threads(threads);
+    d.commit().unwrap();
+    d
+}
+
+/// A C string for the C ABI's names.
+pub fn c(s: &str) -> CString {
+    CString::new(s).unwrap()
+}
 
 /// A float32 tensor read from a .npy file.
 pub struct Npy {

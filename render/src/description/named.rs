@@ -59,6 +59,9 @@ pub fn names() -> Vec<&'static str> {
 }
 
 /// A named scene.
+///
+/// # Panics
+/// If a built-in scene file does not parse (a test parses every one).
 pub fn scene(name: &str) -> Option<Scene> {
     let (n, _, text) = NAMED.iter().find(|n| n.0 == name)?;
     Some(

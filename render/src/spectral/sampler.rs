@@ -53,7 +53,9 @@ impl LambdaSampler {
             acc += p / total * BIN as f64;
             cdf.push(acc as f32);
         }
-        *cdf.last_mut().unwrap() = 1.0;
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
         LambdaSampler::Table {
             pdf: pdf.iter().map(|p| (p / total) as f32).collect(),
             cdf,

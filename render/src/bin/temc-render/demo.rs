@@ -36,12 +36,9 @@ pub struct Args {
 
 /// Runs the demo and prints what it measured.
 pub fn main(a: Args) -> Result<(), String> {
-    let quality = match a.quality.as_str() {
-        "fast" => Quality::Fast,
-        "balanced" => Quality::Balanced,
-        "high" => Quality::High,
-        q => return Err(format!("--quality {q:?}: expected fast, balanced or high")),
-    };
+    let quality = Quality::from_name(&a.quality)
+        .filter(|q| *q != Quality::Default)
+        .ok_or_else(|| format!("--quality {:?}: expected fast, balanced or high", a.quality))?;
     let o = Options {
         scene: a.scene,
         size: crate::parse_size(&a.size)?,
