@@ -1,4 +1,4 @@
-"""How far the analytic CIE 1931 fit used by temc (src/color/spectral.rs, color.cmf) is from
+"""How far the analytic CIE 1931 fit used by temc (color/src/cie.rs, color.cmf) is from
 the tabulated CIE 1931 2-degree observer (colour-science's copy, 1 nm, 360..830 nm)."""
 
 import warnings
@@ -22,7 +22,7 @@ def test_fit_error_against_the_cie_table():
     fit = color.cmf(lam)
     err = np.abs(fit - ref).max(axis=0)
     print(f"max abs error of the fit (x, y, z): {err}")
-    # Measured: 0.0148, 0.0076, 0.0238 (y-bar peaks at 1.0); src/color/spectral.rs quotes
+    # Measured: 0.0148, 0.0076, 0.0238 (y-bar peaks at 1.0); color/src/cie.rs quotes
     # these numbers, so the bound is kept tight.
     assert np.all(err < [0.016, 0.008, 0.025]), err
 
