@@ -576,3 +576,38 @@ fn cancellation_at_random_points_leaves_no_output_and_the_filter_usable() {
     drop(f);
     assert!(out.iter().all(|v| *v == -3.0));
 }
+
+/// A mutated test model whose graph output names nothing in the graph (the `weights` fuzz
+/// target, 2026-12-02) made tract panic while parsing; it is refused with an error at
+/// commit, through the Rust API and the C ABI.
+#[test]
+fn a_model_with_an_undefined_graph_output_is_refused() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/fuzz");
+    let bytes = std::fs::read(format!("{dir}/weights-undefined-output-2026-12-02.onnx")).unwrap();
+    let dev = device(1);
+    let color = smooth(8, 8);
+    let mut f = Filter::new(&dev, "AE").unwrap();
+    f.set_weights(&bytes);
+    f.set_input_f32("color", &color, 8, 8).unwrap();
+    match f.commit() {
+        Err(Error::Model(m)) => assert!(m.contains("graph output"), "{m}"),
+        other => panic!("expected a model error, got {other:?}"),
+    }
+    drop(f);
+    let d = temcNewDevice(TEMC_DEVICE_TYPE_DEFAULT);
+    temcCommitDevice(d);
+    // SAFETY: NUL-terminated names and a buffer that outlives the filter.
+    let cf = unsafe { temcNewFilter(d, c("AE").as_ptr()) };
+    unsafe {
+        temcSetSharedFilterData(
+            cf,
+            c("weights").as_ptr(),
+            bytes.as_ptr() as *mut _,
+            bytes.len(),
+        );
+    }
+    temcCommitFilter(cf);
+    assert_ne!(c_error(d), TEMC_ERROR_NONE);
+    temcReleaseFilter(cf);
+    temcReleaseDevice(d);
+}

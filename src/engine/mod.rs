@@ -63,6 +63,47 @@ fn model_err(context: &str) -> impl Fn(TractError) -> Error + '_ {
     move |e| Error::Model(format!("{context}: {e:#}"))
 }
 
+/// Refuses what tract 0.23.9 would panic on instead of reporting (the `weights` fuzz
+/// target, 2026-12-02): a graph output that no input, initializer or node names (tract
+/// indexes its name map with it). Control-flow subgraphs, which temc's feed-forward models
+/// never hold, are refused too: their names are resolved the same way.
+fn check_graph(proto: &tract_onnx::pb::ModelProto) -> Result<(), Error> {
+    let Some(g) = &proto.graph else {
+        return Ok(()); // tract reports a missing graph as an error itself
+    };
+    let subgraphs = |n: &tract_onnx::pb::NodeProto| {
+        n.attribute
+            .iter()
+            .any(|a| a.g.is_some() || !a.graphs.is_empty())
+    };
+    if let Some(n) = g.node.iter().find(|n| subgraphs(n)) {
+        return Err(Error::Model(format!(
+            "node {:?} ({}): control-flow subgraphs are not supported",
+            n.name, n.op_type
+        )));
+    }
+    let named: std::collections::HashSet<&str> = g
+        .input
+        .iter()
+        .map(|i| i.name.as_str())
+        .chain(g.initializer.iter().map(|t| t.name.as_str()))
+        .chain(
+            g.node
+                .iter()
+                .flat_map(|n| n.input.iter().chain(&n.output))
+                .map(String::as_str),
+        )
+        .filter(|s| !s.is_empty())
+        .collect();
+    match g.output.iter().find(|o| !named.contains(o.name.as_str())) {
+        Some(o) => Err(Error::Model(format!(
+            "graph output {:?} is not produced by the graph",
+            o.name
+        ))),
+        None => Ok(()),
+    }
+}
+
 impl Model {
     /// Loads a model from the bytes of an ONNX file (e.g. one embedded in the library or
     /// handed over through the C ABI). The file must carry temc metadata.
@@ -71,6 +112,7 @@ impl Model {
         let proto = onnx
             .proto_model_for_read(&mut &bytes[..])
             .map_err(model_err("not a readable ONNX model"))?;
+        check_graph(&proto)?;
         let info = ModelInfo::from_props(
             proto
                 .metadata_props
