@@ -4,6 +4,9 @@
 //! committed file; `TEMC_BLESS=1 cargo test --release --test color_vectors` rewrites it
 //! (then rerun the Python tests).
 
+mod common;
+
+use common::json_f32 as parse;
 use serde_json::{json, Value};
 use temc::color::{self, Exposure, SpectralBands};
 
@@ -24,15 +27,6 @@ fn num(x: f32) -> Value {
 
 fn nums(xs: &[f32]) -> Value {
     Value::Array(xs.iter().map(|&x| num(x)).collect())
-}
-
-fn parse(v: &Value) -> f32 {
-    match v {
-        Value::String(s) if s == "nan" => f32::NAN,
-        Value::String(s) if s == "inf" => f32::INFINITY,
-        Value::String(s) if s == "-inf" => f32::NEG_INFINITY,
-        v => v.as_f64().expect("number") as f32,
-    }
 }
 
 fn pixel_cases() -> Vec<(&'static str, [f32; 3], f32)> {

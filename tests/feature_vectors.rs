@@ -5,6 +5,9 @@
 //! on either side, regenerate the file (`python -m temc_train.feature_vectors` in
 //! training/) and run this test and training/tests/test_feature_vectors.py.
 
+mod common;
+
+use common::json_f32 as parse;
 use serde_json::Value;
 use temc::color::{self, features};
 
@@ -16,16 +19,6 @@ const PATH: &str = concat!(
 fn load() -> Value {
     let text = std::fs::read_to_string(PATH).expect("tests/data/feature_vectors.json");
     serde_json::from_str(&text).expect("valid JSON")
-}
-
-/// JSON has no NaN or Inf: they travel as strings.
-fn parse(v: &Value) -> f32 {
-    match v {
-        Value::String(s) if s == "nan" => f32::NAN,
-        Value::String(s) if s == "inf" => f32::INFINITY,
-        Value::String(s) if s == "-inf" => f32::NEG_INFINITY,
-        v => v.as_f64().expect("number") as f32,
-    }
 }
 
 fn floats(v: &Value) -> Vec<f32> {

@@ -82,3 +82,13 @@ pub fn read_npy(path: &Path) -> Npy {
         .collect();
     Npy { shape, data }
 }
+
+/// A number of a shared vector file: JSON has no NaN or Inf, so they travel as strings.
+pub fn json_f32(v: &serde_json::Value) -> f32 {
+    match v {
+        serde_json::Value::String(s) if s == "nan" => f32::NAN,
+        serde_json::Value::String(s) if s == "inf" => f32::INFINITY,
+        serde_json::Value::String(s) if s == "-inf" => f32::NEG_INFINITY,
+        v => v.as_f64().expect("number") as f32,
+    }
+}

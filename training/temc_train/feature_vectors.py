@@ -15,6 +15,7 @@ import numpy as np
 
 from temc_train import color
 from temc_train.data import auto_input_scale
+from temc_train.recon_vectors import _num  # NaN/Inf as JSON strings, as the Rust side reads them
 
 OUT = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "feature_vectors.json"
 # Exposure: the core rounds its scale to float32 (6e-8 relative), this package keeps float64.
@@ -80,15 +81,6 @@ def depth_cases():
 
 def _f32(x):
     return np.asarray(x, np.float64).astype(np.float32)
-
-
-def _num(v):
-    v = float(v)
-    if math.isnan(v):
-        return "nan"
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return v
 
 
 def _flat(a):
