@@ -24,8 +24,8 @@ pub struct Settings {
     pub seed: u64,
     /// Longest path, in bounces.
     pub max_depth: u32,
-    /// Run the cheapest kernel the scene allows (`false`: the general kernel).
-    pub specialise: bool,
+    /// The kernel to run; `None`: the cheapest the scene allows.
+    pub kernel: Option<Kernel>,
 }
 
 impl Default for Settings {
@@ -36,7 +36,7 @@ impl Default for Settings {
             spp: 16,
             seed: 1,
             max_depth: 12,
-            specialise: true,
+            kernel: None,
         }
     }
 }
@@ -47,11 +47,9 @@ pub struct Cancelled;
 
 /// The kernel `settings` select for `scene`.
 pub fn kernel_for(scene: &Scene, settings: &Settings) -> Kernel {
-    if settings.specialise {
-        Kernel::for_features(&scene.features())
-    } else {
-        Kernel::GENERAL
-    }
+    settings
+        .kernel
+        .unwrap_or_else(|| Kernel::for_features(&scene.features()))
 }
 
 /// Renders `scene` at `settings.spp`.

@@ -24,7 +24,63 @@ pub struct Scene {
     /// Camera.
     pub camera: Camera,
     bvh: Bvh,
-    lights: Vec<usize>,
+    lights: Lights,
+}
+
+/// The emitting primitives next-event estimation samples, chosen in proportion to their
+/// power, so a scene of many dim lamps and one bright one spends its light samples on the
+/// bright one.
+#[derive(Clone, Debug, Default)]
+struct Lights {
+    /// Primitive indices.
+    prims: Vec<usize>,
+    /// Cumulative selection probability (last = 1).
+    cdf: Vec<f32>,
+    /// Selection probability of every primitive (0 for those that do not emit).
+    prob: Vec<f32>,
+}
+
+impl Lights {
+    fn new(prims: &[Prim], prim_material: &[usize], materials: &[Material]) -> Self {
+        // Emitted power per unit area of each material: `scale` is the radiance's
+        // luminance, and a side emits pi times its radiance.
+        let density: Vec<f64> = materials
+            .iter()
+            .map(|m| match m {
+                Material::Emitter {
+                    scale,
+                    radiance,
+                    two_sided,
+                } => {
+                    let sides = if *two_sided { 2.0 } else { 1.0 };
+                    (scale * radiance.luminance()) as f64 * sides
+                }
+                _ => 0.0,
+            })
+            .collect();
+        let power = |i: usize| density[prim_material[i]] * prims[i].area() as f64;
+        let lit: Vec<(usize, f64)> = (0..prims.len())
+            .map(|i| (i, power(i)))
+            .filter(|&(_, p)| p > 0.0 && p.is_finite())
+            .collect();
+        let total: f64 = lit.iter().map(|l| l.1).sum();
+        let mut prob = vec![0.0f32; prims.len()];
+        let mut cdf = Vec::with_capacity(lit.len());
+        let mut acc = 0.0f64;
+        for &(i, p) in &lit {
+            prob[i] = (p / total) as f32;
+            acc += p / total;
+            cdf.push(acc as f32);
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Lights {
+            prims: lit.iter().map(|l| l.0).collect(),
+            cdf,
+            prob,
+        }
+    }
 }
 
 /// A ray hit.
@@ -75,12 +131,7 @@ impl Scene {
             prims.extend(shape);
         }
         let bvh = Bvh::build(&prims);
-        let lights = (0..prims.len())
-            .filter(|&i| {
-                matches!(materials[prim_material[i]], Material::Emitter { .. })
-                    && matches!(prims[i], Prim::Quad { .. } | Prim::Sphere { .. })
-            })
-            .collect();
+        let lights = Lights::new(&prims, &prim_material, &materials);
         Scene {
             name: name.into(),
             materials,
@@ -110,12 +161,29 @@ impl Scene {
 
     /// Whether anything but primitive `skip` blocks the segment from `o` along `d`.
     pub fn occluded(&self, o: V3, d: V3, t_max: f32, skip: usize) -> bool {
-        self.bvh.occluded(&self.prims, o, d, t_max, &[skip])
+        self.bvh.occluded(o, d, t_max, &[skip])
     }
 
-    /// Emissive quads and spheres: the lights next-event estimation samples.
+    /// The emitting primitives: the lights next-event estimation samples.
     pub fn lights(&self) -> &[usize] {
-        &self.lights
+        &self.lights.prims
+    }
+
+    /// Picks a light in proportion to its power from a uniform number `u`: the primitive
+    /// and the probability of having picked it. `None` when nothing emits.
+    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
+        let l = &self.lights;
+        let k = l
+            .cdf
+            .partition_point(|&c| c <= u)
+            .min(l.prims.len().checked_sub(1)?);
+        let prim = l.prims[k];
+        Some((prim, l.prob[prim]))
+    }
+
+    /// The probability with which [`Scene::pick_light`] picks primitive `prim`.
+    pub fn light_probability(&self, prim: usize) -> f32 {
+        self.lights.prob[prim]
     }
 
     /// Spectra of every emitter and of the environment.

@@ -1,14 +1,15 @@
 //! The scene file format: one statement per line, `#` starts a comment, keys may come in
-//! any order. Errors name the file and line.
+//! any order. Errors name the file and line (and the CSV file's line for tables read from
+//! one).
 //!
 //! ```text
 //! camera eye X Y Z target X Y Z fov DEGREES
 //! environment SPECTRUM [scale S]
-//! material NAME diffuse reflectance TEX
-//! material NAME conductor metal Au|Ag|Cu|Al [roughness STEX]
-//! material NAME dielectric (ior N | cauchy A B | sellmeier bk7|sf11 | sellmeier B1 B2 B3 C1 C2 C3) [roughness STEX]
-//! material NAME plastic reflectance TEX [ior N] [roughness STEX]
-//! material NAME emitter SPECTRUM [scale S]
+//! material NAME diffuse reflectance REFL
+//! material NAME conductor (metal Au|Ag|Cu|Al | eta SPECTRUM k SPECTRUM) [roughness STEX]
+//! material NAME dielectric (ior N | ior SPECTRUM | cauchy A B | sellmeier bk7|sf11 | sellmeier B1 B2 B3 C1 C2 C3) [roughness STEX]
+//! material NAME plastic reflectance REFL [ior N] [roughness STEX]
+//! material NAME emitter SPECTRUM [scale S] [two-sided]
 //! sphere center X Y Z radius R material NAME
 //! quad corner X Y Z edge1 X Y Z edge2 X Y Z material NAME
 //! box min X Y Z max X Y Z [rotate DEGREES] material NAME
@@ -16,16 +17,27 @@
 //! torus center X Y Z radii MAJOR MINOR [tilt DEGREES] material NAME
 //! mesh file PATH.obj [scale S] [rotate DEGREES] [translate X Y Z] material NAME
 //!
+//! REFL     = TEX | spectrum SPECTRUM            (a measured reflectance, values in [0, 1])
 //! TEX      = rgb R G B | PATTERN R G B R G B FREQ
 //! STEX     = VALUE | PATTERN A B FREQ          (GGX alpha; 0 is smooth)
 //! PATTERN  = checker | stripes | noise | fine
 //! SPECTRUM = constant V | blackbody KELVIN | d65 | fluorescent | laser NM [WIDTH_NM] | rgb R G B
+//!          | table NM V [NM V ...] | csv PATH.csv
 //! ```
 //!
-//! Emitter and environment `scale` is a luminance: the spectrum is divided by its own
-//! luminance first, so a D65 lamp and a laser with the same scale are equally bright.
-//! `rotate` turns about the vertical (y) axis; `tilt` about x. Mesh paths are relative to
-//! the scene file.
+//! `table` and `csv` give a measured spectrum as (wavelength in nm, value) pairs with
+//! increasing wavelengths, linearly interpolated and held flat outside; a CSV file has one
+//! pair a line (comma, semicolon or blank separated, `#` comments and one header line
+//! allowed), resolved next to the scene file. A line spectrum is written directly, e.g.
+//! `table 540 0.02 545 3 550 0.02 ...`; narrow peaks make the renderer sample wavelengths
+//! from the emitters' spectra.
+//!
+//! Emitters are one-sided: a quad or triangle emits along `edge1 x edge2`, a sphere outwards;
+//! `two-sided` emits from both faces. Emitter and environment `scale` is a luminance: the
+//! spectrum is divided by its own luminance first, so a D65 lamp and a laser with the same
+//! scale are equally bright. `rotate` turns about the vertical (y) axis; `tilt` about x.
+//! Mesh and CSV paths are relative to the scene file. The world is right-handed with y up
+//! (see [`crate::camera::Camera`]).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -36,13 +48,15 @@ use crate::geometry::shape::{boxed, prism, rotate_y, torus, Prim};
 use crate::geometry::vec3::V3;
 use crate::materials::ior::{Ior, BK7, SF11};
 use crate::materials::texture::{Pattern, Texture};
-use crate::materials::{metal, metal_albedo, Material};
+use crate::materials::{metal, metal_albedo, Material, Metal, Reflectance};
 use crate::scene::Scene;
 use crate::spectral::spectrum::Spectrum;
 
 struct Cursor<'a> {
     toks: Vec<&'a str>,
     pos: usize,
+    /// Where CSV files are resolved (None: refused).
+    dir: Option<&'a Path>,
 }
 
 type Res<T> = Result<T, String>;
@@ -140,9 +154,16 @@ impl<'a> Cursor<'a> {
         }
         Ok(Texture::scalar(check(self.num("a value")?)?))
     }
-    fn spectrum(&mut self) -> Res<Spectrum> {
+    /// A spectrum; tables and constants must have values in `range`.
+    fn spectrum(&mut self, range: (f32, f32)) -> Res<Spectrum> {
         match self.word("a spectrum")? {
-            "constant" => Ok(Spectrum::Constant(self.pos_num("the constant")?)),
+            "constant" => {
+                let v = self.num("the constant")?;
+                if !(range.0..=range.1).contains(&v) {
+                    return Err(format!("constant {v} is outside {}..{}", range.0, range.1));
+                }
+                Ok(Spectrum::Constant(v))
+            }
             "blackbody" => {
                 let k = self.pos_num("the temperature")?;
                 if !(500.0..=50000.0).contains(&k) {
@@ -165,12 +186,72 @@ impl<'a> Cursor<'a> {
                 Ok(Spectrum::laser(nm, w))
             }
             "rgb" => Ok(Spectrum::Rgb(self.rgb("an rgb spectrum")?)),
+            "table" => {
+                let mut points = Vec::new();
+                while self.next_is_num() {
+                    points.push((self.num("a wavelength")?, self.num("a table value")?));
+                }
+                Spectrum::sampled(points, range)
+            }
+            "csv" => {
+                let file = self.word("a CSV file name")?;
+                let dir = self.dir.ok_or("CSV files need the scene to come from a file")?;
+                let path = dir.join(file);
+                let text = std::fs::read_to_string(&path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                let points = csv_pairs(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+                Spectrum::sampled(points, range).map_err(|e| format!("{}: {e}", path.display()))
+            }
             t => Err(format!(
-                "unknown spectrum '{t}' (constant, blackbody, d65, fluorescent, laser, rgb)"
+                "unknown spectrum '{t}' (constant, blackbody, d65, fluorescent, laser, rgb, table, csv)"
             )),
         }
     }
+
+    /// A diffuse or plastic reflectance: an RGB texture, or `spectrum SPECTRUM`.
+    fn reflectance(&mut self) -> Res<Reflectance> {
+        if self.peek() == Some("spectrum") {
+            self.pos += 1;
+            return Ok(Reflectance::spectral(self.spectrum((0.0, 1.0))?));
+        }
+        Ok(Reflectance::Texture(self.texture()?))
+    }
 }
+
+/// (wavelength, value) pairs of a CSV file: one pair a line, separated by a comma,
+/// semicolon or blanks; `#` comments, blank lines and one header line are skipped. Errors
+/// start with the line number.
+fn csv_pairs(text: &str) -> Res<Vec<(f32, f32)>> {
+    let mut points = Vec::new();
+    let mut header_seen = false;
+    for (ln, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line
+            .split(|c: char| c == ',' || c == ';' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .collect();
+        let nums: Vec<Option<f32>> = f.iter().map(|t| t.parse::<f32>().ok()).collect();
+        match nums.as_slice() {
+            [Some(l), Some(v)] if l.is_finite() && v.is_finite() => points.push((*l, *v)),
+            _ if points.is_empty() && !header_seen && nums.iter().any(Option::is_none) => {
+                header_seen = true
+            }
+            _ => {
+                return Err(format!(
+                    "{}: expected 'wavelength, value', found '{line}'",
+                    ln + 1
+                ))
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// The values an emission spectrum may take.
+const EMISSION: (f32, f32) = (0.0, f32::MAX);
 
 /// Scales a spectrum by `scale` over its luminance; refuses black spectra.
 fn emitter(spectrum: Spectrum, scale: f32) -> Res<(Spectrum, f32)> {
@@ -244,7 +325,7 @@ fn camera(c: &mut Cursor) -> Res<Camera> {
 
 /// An environment statement: a spectrum and its scale.
 fn environment(c: &mut Cursor) -> Res<(Spectrum, f32)> {
-    let s = c.spectrum()?;
+    let s = c.spectrum(EMISSION)?;
     let mut scale = 1.0;
     while !c.done() {
         match c.word("a key")? {
@@ -420,66 +501,91 @@ impl Builder<'_> {
 
     fn material(&mut self, c: &mut Cursor) -> Res<Material> {
         let kind = c.word("a material kind")?;
-        let mut reflectance = None;
-        let mut roughness = Texture::scalar(0.0);
-        let mut ior = None;
-        let mut metal_name = None;
-        let mut spectrum = None;
-        let mut scale = 1.0;
+        let mut m = MaterialKeys::default();
         if kind == "emitter" {
-            spectrum = Some(c.spectrum()?);
+            m.spectrum = Some(c.spectrum(EMISSION)?);
         }
         while !c.done() {
-            match (kind, c.word("a key")?) {
-                ("diffuse" | "plastic", "reflectance") => reflectance = Some(c.texture()?),
-                ("conductor" | "dielectric" | "plastic", "roughness") => {
-                    roughness = c.scalar_texture(0.0, 1.0)?
-                }
-                ("conductor", "metal") => {
-                    let n = c.word("a metal")?;
-                    metal_name = Some(
-                        metal(n)
-                            .map(|m| (n, m))
-                            .ok_or_else(|| format!("unknown metal '{n}' (Au, Ag, Cu, Al)"))?,
-                    );
-                }
-                ("dielectric" | "plastic", "ior") => {
+            m.key(kind, c)?;
+        }
+        m.build(kind)
+    }
+}
+
+/// The keys a material statement has given so far.
+struct MaterialKeys {
+    reflectance: Option<Reflectance>,
+    roughness: Texture,
+    ior: Option<Ior>,
+    metal: Option<Metal>,
+    eta: Option<Spectrum>,
+    k: Option<Spectrum>,
+    spectrum: Option<Spectrum>,
+    scale: f32,
+    two_sided: bool,
+}
+
+impl Default for MaterialKeys {
+    fn default() -> Self {
+        MaterialKeys {
+            reflectance: None,
+            roughness: Texture::scalar(0.0),
+            ior: None,
+            metal: None,
+            eta: None,
+            k: None,
+            spectrum: None,
+            scale: 1.0,
+            two_sided: false,
+        }
+    }
+}
+
+impl MaterialKeys {
+    /// Reads one key of a `kind` material and its values.
+    fn key(&mut self, kind: &str, c: &mut Cursor) -> Res<()> {
+        match (kind, c.word("a key")?) {
+            ("diffuse" | "plastic", "reflectance") => self.reflectance = Some(c.reflectance()?),
+            ("conductor" | "dielectric" | "plastic", "roughness") => {
+                self.roughness = c.scalar_texture(0.0, 1.0)?
+            }
+            ("conductor", "metal") => {
+                let n = c.word("a metal")?;
+                self.metal =
+                    Some(metal(n).ok_or_else(|| format!("unknown metal '{n}' (Au, Ag, Cu, Al)"))?);
+            }
+            ("conductor", "eta") => self.eta = Some(c.spectrum((0.0, 100.0))?),
+            ("conductor", "k") => self.k = Some(c.spectrum((0.0, 100.0))?),
+            ("dielectric" | "plastic", "ior") => {
+                self.ior = Some(if c.next_is_num() {
                     let n = c.num("ior")?;
                     if !(1.0..=4.0).contains(&n) {
                         return Err(format!("ior {n} is outside 1..4"));
                     }
-                    ior = Some(Ior::Constant(n));
-                }
-                ("dielectric", "cauchy") => {
-                    ior = Some(Ior::Cauchy {
-                        a: c.pos_num("cauchy A")?,
-                        b: c.num("cauchy B")?,
-                    })
-                }
-                ("dielectric", "sellmeier") => {
-                    ior = Some(if c.next_is_num() {
-                        let mut b = [0.0; 3];
-                        let mut cc = [0.0; 3];
-                        for v in &mut b {
-                            *v = c.num("a Sellmeier B")?;
-                        }
-                        for v in &mut cc {
-                            *v = c.num("a Sellmeier C")?;
-                        }
-                        Ior::Sellmeier { b, c: cc }
-                    } else {
-                        match c.word("a glass name")? {
-                            "bk7" => BK7,
-                            "sf11" => SF11,
-                            g => return Err(format!("unknown glass '{g}' (bk7, sf11)")),
-                        }
-                    })
-                }
-                ("emitter", "scale") => scale = c.pos_num("scale")?,
-                (_, k) => return Err(format!("unknown key '{k}' for a {kind} material")),
+                    Ior::Constant(n)
+                } else if kind == "dielectric" {
+                    Ior::Tabulated(c.spectrum((1.0, 4.0))?)
+                } else {
+                    return Err("a plastic's ior is one number".into());
+                })
             }
+            ("dielectric", "cauchy") => {
+                self.ior = Some(Ior::Cauchy {
+                    a: c.pos_num("cauchy A")?,
+                    b: c.num("cauchy B")?,
+                })
+            }
+            ("dielectric", "sellmeier") => self.ior = Some(sellmeier(c)?),
+            ("emitter", "scale") => self.scale = c.pos_num("scale")?,
+            ("emitter", "two-sided") => self.two_sided = true,
+            (_, k) => return Err(format!("unknown key '{k}' for a {kind} material")),
         }
-        if let Some(i) = ior {
+        Ok(())
+    }
+
+    /// The material the keys describe.
+    fn build(self, kind: &str) -> Res<Material> {
+        if let Some(i) = &self.ior {
             for l in [380.0, 580.0, 780.0] {
                 let n = i.eval(l);
                 if !(n.is_finite() && (1.0..=4.0).contains(&n)) {
@@ -489,31 +595,41 @@ impl Builder<'_> {
         }
         Ok(match kind {
             "diffuse" => Material::Diffuse {
-                reflectance: reflectance.ok_or("diffuse needs 'reflectance'")?,
+                reflectance: self.reflectance.ok_or("diffuse needs 'reflectance'")?,
             },
             "conductor" => {
-                let (_, m) = metal_name.ok_or("conductor needs 'metal'")?;
+                let m = match (self.metal, self.eta, self.k) {
+                    (Some(m), None, None) => m,
+                    (None, Some(eta), Some(k)) => Metal { eta, k },
+                    _ => return Err("conductor needs either 'metal' or both 'eta' and 'k'".into()),
+                };
                 Material::Conductor {
                     albedo: metal_albedo(&m),
                     metal: m,
-                    roughness,
+                    roughness: self.roughness,
                 }
             }
             "dielectric" => Material::Dielectric {
-                ior: ior.ok_or("dielectric needs 'ior', 'cauchy' or 'sellmeier'")?,
-                roughness,
+                ior: self
+                    .ior
+                    .ok_or("dielectric needs 'ior', 'cauchy' or 'sellmeier'")?,
+                roughness: self.roughness,
             },
             "plastic" => Material::Plastic {
-                reflectance: reflectance.ok_or("plastic needs 'reflectance'")?,
-                ior: match ior {
+                reflectance: self.reflectance.ok_or("plastic needs 'reflectance'")?,
+                ior: match self.ior {
                     Some(Ior::Constant(n)) => n,
                     _ => 1.5,
                 },
-                roughness,
+                roughness: self.roughness,
             },
             "emitter" => {
-                let (radiance, scale) = emitter(spectrum.expect("read above"), scale)?;
-                Material::Emitter { radiance, scale }
+                let (radiance, scale) = emitter(self.spectrum.expect("read first"), self.scale)?;
+                Material::Emitter {
+                    radiance,
+                    scale,
+                    two_sided: self.two_sided,
+                }
             }
             k => {
                 return Err(format!(
@@ -522,6 +638,26 @@ impl Builder<'_> {
             }
         })
     }
+}
+
+/// A Sellmeier glass: six coefficients or a catalogue name.
+fn sellmeier(c: &mut Cursor) -> Res<Ior> {
+    if !c.next_is_num() {
+        return match c.word("a glass name")? {
+            "bk7" => Ok(BK7),
+            "sf11" => Ok(SF11),
+            g => Err(format!("unknown glass '{g}' (bk7, sf11)")),
+        };
+    }
+    let mut b = [0.0; 3];
+    let mut cc = [0.0; 3];
+    for v in &mut b {
+        *v = c.num("a Sellmeier B")?;
+    }
+    for v in &mut cc {
+        *v = c.num("a Sellmeier C")?;
+    }
+    Ok(Ior::Sellmeier { b, c: cc })
 }
 
 /// Parses scene text. `name` names the scene and prefixes errors; `dir` is where mesh
@@ -540,6 +676,7 @@ pub fn parse(text: &str, name: &str, dir: Option<&Path>) -> Result<Scene, String
         let mut c = Cursor {
             toks: line.split_whitespace().collect(),
             pos: 0,
+            dir,
         };
         if c.done() {
             continue;
@@ -617,6 +754,92 @@ mod tests {
         }
         let e = parse("camera eye 0 0 0 target 0 0 1\n", "t", None).unwrap_err();
         assert!(e.contains("no shapes"), "{e}");
+    }
+
+    #[test]
+    fn measured_spectra_and_one_sided_lamps_are_written_directly() {
+        let text = format!(
+            "{OK}material line emitter table 540 0.01 546 5 552 0.01 scale 3\n\
+             material both emitter d65 two-sided\n\
+             material gold conductor eta table 400 1.5 700 0.2 k constant 3 roughness 0.1\n\
+             material glass dielectric ior table 400 1.53 700 1.51\n\
+             material paint diffuse reflectance spectrum table 400 0.1 700 0.9\n"
+        );
+        let s = parse(&text, "ok", None).unwrap();
+        let m = |i: usize| &s.materials[i];
+        assert!(matches!(
+            m(1),
+            Material::Emitter {
+                two_sided: false,
+                ..
+            }
+        ));
+        assert!(
+            matches!(m(2), Material::Emitter { radiance, two_sided: false, .. } if radiance.is_spiky())
+        );
+        assert!(matches!(
+            m(3),
+            Material::Emitter {
+                two_sided: true,
+                ..
+            }
+        ));
+        assert!(
+            matches!(m(4), Material::Conductor { metal, .. } if (metal.eta.eval(550.0) - 0.85).abs() < 1e-5)
+        );
+        assert!(matches!(m(5), Material::Dielectric { ior, .. } if ior.dispersive()));
+        let Material::Diffuse {
+            reflectance: Reflectance::Spectral { rgb, .. },
+        } = m(6)
+        else {
+            panic!("a spectral reflectance")
+        };
+        assert!(
+            rgb[0] > rgb[2],
+            "a reflectance rising to the red looks red: {rgb:?}"
+        );
+        for (line, msg) in [
+            ("material x emitter table 500 1\n", "at least two"),
+            ("material x emitter table 500 1 400 1\n", "must increase"),
+            (
+                "material p diffuse reflectance spectrum table 400 0.5 500 1.5\n",
+                "outside 0..1",
+            ),
+            (
+                "material c conductor eta constant 1\n",
+                "both 'eta' and 'k'",
+            ),
+            (
+                "material x emitter csv lamp.csv\n",
+                "scene to come from a file",
+            ),
+        ] {
+            let e = parse(&format!("{OK}{line}"), "t.scene", None).unwrap_err();
+            assert!(e.starts_with("t.scene:6:") && e.contains(msg), "{e}");
+        }
+    }
+
+    #[test]
+    fn csv_spectra_load_relative_to_the_scene_and_name_their_lines() {
+        let dir = std::env::temp_dir().join(format!("temc-render-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            dir.join("lamp.csv"),
+            "# a lamp\nnm,value\n400, 0.5\n500;1\n600 0.5\n",
+        )
+        .unwrap();
+        std::fs::write(dir.join("bad.csv"), "nm,value\n400,0.5\n500,x\n").unwrap();
+        let scene = format!("{OK}material c emitter csv lamp.csv scale 2\n");
+        std::fs::write(dir.join("c.scene"), &scene).unwrap();
+        let s = load(&dir.join("c.scene")).unwrap();
+        let Material::Emitter { radiance, .. } = &s.materials[2] else {
+            panic!("an emitter")
+        };
+        assert!((radiance.eval(450.0) - 0.75).abs() < 1e-6);
+        std::fs::write(dir.join("b.scene"), scene.replace("lamp.csv", "bad.csv")).unwrap();
+        let e = load(&dir.join("b.scene")).unwrap_err();
+        assert!(e.contains("b.scene:6:") && e.contains("bad.csv:3:"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -5,7 +5,7 @@ use crate::description::format;
 use crate::scene::Scene;
 
 /// The named scenes: name, what it stresses, scene file text.
-pub const NAMED: [(&str, &str, &str); 9] = [
+pub const NAMED: [(&str, &str, &str); 11] = [
     (
         "cornell-spiky",
         "Cornell box under a spiky fluorescent lamp: chroma speckle on white walls",
@@ -45,6 +45,16 @@ pub const NAMED: [(&str, &str, &str); 9] = [
         "laser",
         "a 532 nm laser-line lamp beside a warm lamp: wavelength sampling on a line",
         include_str!("../../scenes/laser.scene"),
+    ),
+    (
+        "many-lights",
+        "64 small ceiling lamps whose power spans 100x: light selection by power",
+        include_str!("../../scenes/many-lights.scene"),
+    ),
+    (
+        "line-lamp",
+        "a one-sided lamp with a measured line spectrum written as a table",
+        include_str!("../../scenes/line-lamp.scene"),
     ),
     (
         "furnace",

@@ -29,9 +29,9 @@ impl Pixel {
                 continue;
             }
             let w = s.radiance[i] as f64 / pdf as f64 / LANES as f64;
-            let c = temc_color::cie::cmf(l as f64);
+            let c = temc_color::cie::cmf_fast(l);
             for (acc, cmf) in self.xyz.iter_mut().zip(c) {
-                *acc += cmf * w / y_norm;
+                *acc += cmf as f64 * w / y_norm;
             }
             let b = ((l - SPECTRAL_MIN_NM) / SPECTRAL_BAND_NM).floor();
             if (0.0..SPECTRAL_BANDS as f32).contains(&b) {

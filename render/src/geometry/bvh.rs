@@ -21,6 +21,67 @@ struct Node {
 pub struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
+    /// The primitives in leaf order, in the form the intersection test wants.
+    packed: Vec<Packed>,
+}
+
+/// A primitive prepared for the ray test: quads keep their normal and edges scaled by
+/// their inverse squared lengths, so a test needs no cross product or division but one.
+#[derive(Clone, Copy, Debug)]
+enum Packed {
+    Sphere { c: V3, r2: f32 },
+    Quad { p: V3, n: V3, e1: V3, e2: V3 },
+    Triangle { p0: V3, e1: V3, e2: V3 },
+}
+
+impl Packed {
+    fn new(p: &Prim) -> Self {
+        match *p {
+            Prim::Sphere { c, r } => Packed::Sphere { c, r2: r * r },
+            Prim::Quad { p, e1, e2 } => Packed::Quad {
+                p,
+                n: e1.cross(e2),
+                e1: e1 / e1.dot(e1),
+                e2: e2 / e2.dot(e2),
+            },
+            Prim::Triangle { p0, e1, e2 } => Packed::Triangle { p0, e1, e2 },
+        }
+    }
+
+    /// The same test as [`Prim::hit_t`].
+    #[inline]
+    fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
+        match *self {
+            Packed::Sphere { c, r2 } => {
+                let oc = o - c;
+                let b = oc.dot(d);
+                let disc = b * b - (oc.dot(oc) - r2);
+                if disc < 0.0 {
+                    return None;
+                }
+                let s = disc.sqrt();
+                [-b - s, -b + s]
+                    .into_iter()
+                    .find(|&t| t > t_min && t < t_max)
+            }
+            Packed::Quad { p, n, e1, e2 } => {
+                let denom = n.dot(d);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = n.dot(p - o) / denom;
+                if t <= t_min || t >= t_max {
+                    return None;
+                }
+                let q = o + d * t - p;
+                let (a, b) = (q.dot(e1), q.dot(e2));
+                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+            }
+            Packed::Triangle { p0, e1, e2 } => {
+                Prim::Triangle { p0, e1, e2 }.hit_t(o, d, t_min, t_max)
+            }
+        }
+    }
 }
 
 const BINS: usize = 12;
@@ -39,7 +100,15 @@ impl Bvh {
         if !prims.is_empty() {
             build_node(&bounds, &mut order, 0, &mut nodes);
         }
-        Bvh { nodes, order }
+        let packed = order
+            .iter()
+            .map(|&i| Packed::new(&prims[i as usize]))
+            .collect();
+        Bvh {
+            nodes,
+            order,
+            packed,
+        }
     }
 
     /// Nearest hit in (t_min, t_max): (primitive index, hit).
@@ -67,10 +136,10 @@ impl Bvh {
             }
             if node.count > 0 {
                 let s = node.start as usize;
-                for &i in &self.order[s..s + node.count as usize] {
-                    if let Some(h) = prims[i as usize].intersect(o, d, t_min, t_max) {
-                        t_max = h.t;
-                        best = Some((i as usize, h));
+                for k in s..s + node.count as usize {
+                    if let Some(t) = self.packed[k].hit_t(o, d, t_min, t_max) {
+                        t_max = t;
+                        best = Some(self.order[k] as usize);
                     }
                 }
             } else {
@@ -87,11 +156,11 @@ impl Bvh {
                 sp += 2;
             }
         }
-        best
+        best.map(|i| (i, prims[i].surface(o + d * t_max, t_max)))
     }
 
     /// Whether anything blocks the segment (t_min, t_max), skipping primitive `skip`.
-    pub fn occluded(&self, prims: &[Prim], o: V3, d: V3, t_max: f32, skip: &[usize]) -> bool {
+    pub fn occluded(&self, o: V3, d: V3, t_max: f32, skip: &[usize]) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -107,9 +176,9 @@ impl Bvh {
             }
             if node.count > 0 {
                 let s = node.start as usize;
-                for &i in &self.order[s..s + node.count as usize] {
-                    if !skip.contains(&(i as usize))
-                        && prims[i as usize].intersect(o, d, 0.0, t_max).is_some()
+                for k in s..s + node.count as usize {
+                    if !skip.contains(&(self.order[k] as usize))
+                        && self.packed[k].hit_t(o, d, 0.0, t_max).is_some()
                     {
                         return true;
                     }
@@ -269,10 +338,7 @@ mod tests {
                 .intersect(&prims, o, d, 1e-4, f32::INFINITY)
                 .map(|(i, h)| (i, h.t));
             assert_eq!(linear.map(|h| h.1), fast.map(|h| h.1));
-            assert_eq!(
-                linear.is_some(),
-                bvh.occluded(&prims, o, d, f32::INFINITY, &[])
-            );
+            assert_eq!(linear.is_some(), bvh.occluded(o, d, f32::INFINITY, &[]));
         }
     }
 }

@@ -110,6 +110,13 @@ impl Prim {
 
     /// Nearest intersection with `t` in (t_min, t_max); `d` is a unit vector.
     pub fn intersect(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<PrimHit> {
+        let t = self.hit_t(o, d, t_min, t_max)?;
+        Some(self.surface(o + d * t, t))
+    }
+
+    /// The distance of the nearest intersection with `t` in (t_min, t_max), without the
+    /// surface details: the BVH tests many primitives and needs those of one.
+    pub fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
         match *self {
             Prim::Sphere { c, r } => {
                 let oc = o - c;
@@ -120,14 +127,9 @@ impl Prim {
                     return None;
                 }
                 let s = disc.sqrt();
-                for t in [-b - s, -b + s] {
-                    if t > t_min && t < t_max {
-                        let n = (o + d * t - c) / r;
-                        let uv = (n.2.atan2(n.0) * r, n.1.clamp(-1.0, 1.0).acos() * r);
-                        return Some(PrimHit { t, n, uv });
-                    }
-                }
-                None
+                [-b - s, -b + s]
+                    .into_iter()
+                    .find(|&t| t > t_min && t < t_max)
             }
             Prim::Quad { p, e1, e2 } => {
                 let n = e1.cross(e2);
@@ -140,17 +142,8 @@ impl Prim {
                     return None;
                 }
                 let q = o + d * t - p;
-                let (l1, l2) = (e1.dot(e1), e2.dot(e2));
-                let (a, b) = (q.dot(e1) / l1, q.dot(e2) / l2);
-                if (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) {
-                    Some(PrimHit {
-                        t,
-                        n: n.norm(),
-                        uv: (a * l1.sqrt(), b * l2.sqrt()),
-                    })
-                } else {
-                    None
-                }
+                let (a, b) = (q.dot(e1) / e1.dot(e1), q.dot(e2) / e2.dot(e2));
+                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
             }
             Prim::Triangle { p0, e1, e2 } => {
                 // Moeller-Trumbore.
@@ -171,15 +164,36 @@ impl Prim {
                     return None;
                 }
                 let t = e2.dot(qv) * inv;
-                if t <= t_min || t >= t_max {
-                    return None;
+                (t > t_min && t < t_max).then_some(t)
+            }
+        }
+    }
+
+    /// The outward normal and texture coordinates at the point `x` (at distance `t`) where
+    /// a ray met the primitive.
+    pub fn surface(&self, x: V3, t: f32) -> PrimHit {
+        match *self {
+            Prim::Sphere { c, r } => {
+                let n = (x - c) / r;
+                let uv = (n.2.atan2(n.0) * r, n.1.clamp(-1.0, 1.0).acos() * r);
+                PrimHit { t, n, uv }
+            }
+            Prim::Quad { p, e1, e2 } => {
+                let q = x - p;
+                let (l1, l2) = (e1.dot(e1), e2.dot(e2));
+                PrimHit {
+                    t,
+                    n: e1.cross(e2).norm(),
+                    uv: (q.dot(e1) / l1.sqrt(), q.dot(e2) / l2.sqrt()),
                 }
+            }
+            Prim::Triangle { e1, e2, .. } => {
                 let n = e1.cross(e2).norm();
-                Some(PrimHit {
+                PrimHit {
                     t,
                     n,
-                    uv: planar_uv(o + d * t, n),
-                })
+                    uv: planar_uv(x, n),
+                }
             }
         }
     }

@@ -3,22 +3,27 @@
 //! The tracer is compiled in several kernels (const generic switches) and a scene runs the
 //! cheapest one that is correct for it: without dispersive glass the four wavelengths are
 //! never split, without any dielectric no refraction code is in the loop. The general
-//! kernel, which a scene can be forced onto to check the specialisation, traces one
-//! wavelength per path from the start (the naive way to support dispersion) and keeps
-//! every material branch.
+//! kernel, which a scene can be forced onto to check the specialisation, is what a general
+//! spectral renderer runs on every scene: four hero wavelengths split only at dispersive
+//! refraction, wavelengths sampled from the emitters, every material branch. The
+//! one-wavelength kernel (one wavelength per path from the start, the naive way to support
+//! dispersion) is kept as a labelled extra baseline.
 
 mod direct;
+
+use std::f32::consts::PI;
 
 use crate::geometry::vec3::V3;
 use crate::geometry::RAY_OFFSET;
 use crate::materials::scattering::{
-    fresnel_conductor, fresnel_dielectric, ggx_g1, reflect, refract, sample_microfacet,
+    fresnel_conductor, fresnel_dielectric, ggx_g1, ggx_reflection, reflect, refract, sample_cosine,
+    sample_microfacet,
 };
 use crate::materials::{Material, SMOOTH};
 use crate::rng::Rng;
 use crate::scene::{Features, Scene};
-use crate::spectral::wavelengths::{Lanes, Wavelengths, LANES};
-use direct::{diffuse_bounce, light_pdf};
+use crate::spectral::wavelengths::{mul, Lanes, Wavelengths, LANES};
+use direct::{diffuse_bounce, emission, light_pdf, mis, next_event};
 
 /// Which code paths a render compiles in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,12 +39,20 @@ pub struct Kernel {
 }
 
 impl Kernel {
-    /// Everything on: correct for any scene, cheapest for none.
+    /// Everything on: correct for any scene, cheapest for none; hero wavelengths split
+    /// only at dispersion (what a general spectral renderer does).
     pub const GENERAL: Kernel = Kernel {
-        split_always: true,
+        split_always: false,
         dispersion: true,
         transmission: true,
         emitter_wavelengths: true,
+    };
+
+    /// [`Kernel::GENERAL`] with one wavelength per path from the first vertex: the naive
+    /// support for dispersion, a baseline only.
+    pub const ONE_WAVELENGTH: Kernel = Kernel {
+        split_always: true,
+        ..Kernel::GENERAL
     };
 
     /// The cheapest correct kernel for a scene with these features.
@@ -122,8 +135,6 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     // 0 after the camera or a bounce that next-event estimation did not cover.
     let mut prev_pdf = 0.0f32;
     let mut prev_p = origin;
-    let lights = scene.lights();
-    let n_lights = lights.len() as f32;
     for depth in 0..max_depth {
         let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
             if let Some((env, scale)) = &scene.environment {
@@ -142,25 +153,26 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
         let (u, v) = hit.uv;
         let material = &scene.materials[hit.material];
         let (wi, transmitted) = match material {
-            Material::Emitter { radiance: s, scale } => {
+            Material::Emitter { .. } => {
                 aux.get_or_insert(([1.0; 3], hit.n));
-                let w = if prev_pdf == 0.0 {
-                    1.0
-                } else {
-                    let lp = light_pdf(scene, hit.prim, prev_p, &hit, d) / n_lights.max(1.0);
-                    prev_pdf * prev_pdf / (prev_pdf * prev_pdf + lp * lp)
-                };
-                let le = s.sample(&wl);
-                for i in 0..LANES {
-                    radiance[i] += beta[i] * le[i] * scale * w;
+                if let Some((s, scale)) = emission(material, hit.front) {
+                    let w = if prev_pdf == 0.0 {
+                        1.0
+                    } else {
+                        mis(prev_pdf, light_pdf(scene, hit.prim, prev_p, &hit, d))
+                    };
+                    let le = s.sample(&wl);
+                    for i in 0..LANES {
+                        radiance[i] += beta[i] * le[i] * scale * w;
+                    }
                 }
                 break;
             }
             Material::Diffuse { reflectance } => {
-                let rgb = reflectance.eval(u, v);
+                let (rho, rgb) = reflectance.at(u, v, &wl);
                 aux.get_or_insert((rgb, hit.n));
                 let (wi, pdf) =
-                    diffuse_bounce(scene, &hit, rgb, &wl, &mut beta, rng, &mut radiance);
+                    diffuse_bounce(scene, &hit, rho, 1.0, &wl, &mut beta, rng, &mut radiance);
                 prev_pdf = pdf;
                 (wi, false)
             }
@@ -169,15 +181,32 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 ior,
                 roughness,
             } => {
-                let rgb = reflectance.eval(u, v);
+                let (rho, rgb) = reflectance.at(u, v, &wl);
                 aux.get_or_insert((rgb, hit.n));
                 let f = fresnel_dielectric(wo.dot(hit.n), *ior);
-                if rng.uniform() < f {
-                    // The coat: mirror, or GGX by visible-normal sampling.
-                    prev_pdf = 0.0;
-                    let a = roughness.eval_scalar(u, v);
+                let a = roughness.eval_scalar(u, v);
+                // Both lobes as one BSDF for light sampling and MIS: the coat (GGX, or a
+                // mirror that light sampling cannot see) chosen with probability f, the
+                // Lambertian base with 1 - f.
+                let coat = |wi: V3| {
+                    (a >= SMOOTH)
+                        .then(|| ggx_reflection(wo, wi, hit.n, a))
+                        .flatten()
+                        .map_or((0.0, 0.0), |(fc, pdf, _)| (f * fc, f * pdf))
+                };
+                let base_pdf = |wi: V3| (1.0 - f) * hit.n.dot(wi).max(0.0) / PI;
+                next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                    let cos = hit.n.dot(wi);
+                    let (c, c_pdf) = coat(wi);
+                    (cos > 0.0).then(|| {
+                        let fd = (1.0 - f) * cos / PI;
+                        (rho.map(|r| r * fd + c), base_pdf(wi) + c_pdf)
+                    })
+                });
+                let wi = if rng.uniform() < f {
                     if a < SMOOTH {
-                        (reflect(wo, hit.n), false)
+                        prev_pdf = 0.0;
+                        reflect(wo, hit.n)
                     } else {
                         let m = sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform());
                         let wi = reflect(wo, m);
@@ -185,38 +214,47 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                             break;
                         }
                         beta = beta.map(|b| b * ggx_g1(wi.dot(hit.n), a));
-                        (wi, false)
+                        prev_pdf = base_pdf(wi) + coat(wi).1;
+                        wi
                     }
                 } else {
-                    let (wi, pdf) =
-                        diffuse_bounce(scene, &hit, rgb, &wl, &mut beta, rng, &mut radiance);
-                    prev_pdf = pdf;
-                    (wi, false)
-                }
+                    let (wi, _) = sample_cosine(hit.n, rng.uniform(), rng.uniform());
+                    beta = mul(beta, rho);
+                    prev_pdf = base_pdf(wi) + coat(wi).1;
+                    wi
+                };
+                (wi, false)
             }
             Material::Conductor {
                 metal,
                 roughness,
                 albedo,
             } => {
-                prev_pdf = 0.0;
                 let a = roughness.eval_scalar(u, v);
+                let eta = metal.eta.sample(&wl);
+                let k = metal.k.sample(&wl);
+                let fresnel =
+                    |cos: f32| std::array::from_fn(|i| fresnel_conductor(cos, eta[i], k[i]));
                 let (wi, cos_m, g) = if a < SMOOTH {
+                    prev_pdf = 0.0;
                     (reflect(wo, hit.n), wo.dot(hit.n), 1.0)
                 } else {
                     aux.get_or_insert((*albedo, hit.n));
+                    next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                        let (fc, pdf, cos_h) = ggx_reflection(wo, wi, hit.n, a)?;
+                        let fr: Lanes = fresnel(cos_h);
+                        Some((fr.map(|v| v * fc), pdf))
+                    });
                     let m = sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform());
                     let wi = reflect(wo, m);
                     if wi.dot(hit.n) <= 0.0 {
                         break;
                     }
+                    prev_pdf = ggx_reflection(wo, wi, hit.n, a).map_or(0.0, |r| r.1);
                     (wi, wo.dot(m), ggx_g1(wi.dot(hit.n), a))
                 };
-                let eta = metal.eta.sample(&wl);
-                let k = metal.k.sample(&wl);
-                for i in 0..LANES {
-                    beta[i] *= fresnel_conductor(cos_m, eta[i], k[i]) * g;
-                }
+                let fr: Lanes = fresnel(cos_m);
+                beta = std::array::from_fn(|i| beta[i] * fr[i] * g);
                 (wi, false)
             }
             Material::Dielectric { ior, roughness } => {
@@ -230,10 +268,23 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 let n_mat = ior.eval(wl.lambda[0]);
                 let eta = if hit.front { n_mat } else { 1.0 / n_mat };
                 let a = roughness.eval_scalar(u, v);
+                // Light sampling covers the outside reflection lobe of rough glass; lights
+                // seen through it are found by the refracted paths alone (weight 1).
+                let reflection_pdf = |wi: V3| {
+                    let (fc, pdf, cos_h) = ggx_reflection(wo, wi, hit.n, a)?;
+                    let fr = fresnel_dielectric(cos_h, eta);
+                    Some((fr * fc, fr * pdf))
+                };
+                let lit = a >= SMOOTH && hit.front;
                 let m = if a < SMOOTH {
                     hit.n
                 } else {
                     aux.get_or_insert(([1.0; 3], hit.n));
+                    if lit {
+                        next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                            reflection_pdf(wi).map(|(fc, pdf)| ([fc; LANES], pdf))
+                        });
+                    }
                     sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform())
                 };
                 let cos = wo.dot(m);
@@ -255,6 +306,9 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 }
                 if a >= SMOOTH {
                     beta = beta.map(|b| b * ggx_g1(side.abs(), a));
+                }
+                if lit && !through {
+                    prev_pdf = reflection_pdf(wi).map_or(0.0, |r| r.1);
                 }
                 (wi, through)
             }

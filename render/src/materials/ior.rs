@@ -1,8 +1,10 @@
 //! Indices of refraction as functions of wavelength: constant, Cauchy and Sellmeier, with
-//! the two Schott glasses the scenes name.
+//! tables, with the two Schott glasses the scenes name.
+
+use crate::spectral::spectrum::Spectrum;
 
 /// Index of refraction as a function of wavelength.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub enum Ior {
     /// The same at every wavelength (no dispersion).
     Constant(f32),
@@ -20,6 +22,8 @@ pub enum Ior {
         /// C coefficients (um^2).
         c: [f32; 3],
     },
+    /// Measured: n tabulated against wavelength.
+    Tabulated(Spectrum),
 }
 
 /// Schott N-BK7 (Abbe number about 64: faint rainbows).
@@ -37,9 +41,10 @@ impl Ior {
     /// n at `l` nm.
     pub fn eval(&self, l: f32) -> f32 {
         let um = l * 1e-3;
-        match *self {
-            Ior::Constant(n) => n,
+        match self {
+            Ior::Constant(n) => *n,
             Ior::Cauchy { a, b } => a + b / (um * um),
+            Ior::Tabulated(s) => s.eval(l),
             Ior::Sellmeier { b, c } => {
                 let l2 = um * um;
                 (1.0 + (0..3).map(|i| b[i] * l2 / (l2 - c[i])).sum::<f32>()).sqrt()
@@ -49,7 +54,11 @@ impl Ior {
 
     /// Whether n depends on wavelength (then refraction splits the wavelengths).
     pub fn dispersive(&self) -> bool {
-        !matches!(self, Ior::Constant(_))
+        match self {
+            Ior::Constant(_) => false,
+            Ior::Tabulated(Spectrum::Sampled(t)) => t.iter().any(|p| p.1 != t[0].1),
+            _ => true,
+        }
     }
 }
 

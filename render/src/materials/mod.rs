@@ -7,6 +7,7 @@ pub mod scattering;
 pub mod texture;
 
 use crate::spectral::spectrum::Spectrum;
+use crate::spectral::wavelengths::{Lanes, Wavelengths};
 use ior::Ior;
 use scattering::fresnel_conductor;
 use texture::Texture;
@@ -36,13 +37,47 @@ pub fn metal(name: &str) -> Option<Metal> {
     })
 }
 
+/// A surface's reflectance: an RGB texture uplifted to a spectrum at each hit, or a
+/// measured spectrum (uniform over the surface).
+#[derive(Clone, Debug)]
+pub enum Reflectance {
+    /// Linear RGB in [0, 1], uplifted per hit.
+    Texture(Texture),
+    /// Values in [0, 1] by wavelength.
+    Spectral {
+        /// The reflectance.
+        spectrum: Spectrum,
+        /// Its colour under D65 as linear sRGB, for the albedo buffer.
+        rgb: [f32; 3],
+    },
+}
+
+impl Reflectance {
+    /// A measured reflectance; its albedo-buffer colour is computed here.
+    pub fn spectral(spectrum: Spectrum) -> Self {
+        let rgb = spectral_albedo(|l| spectrum.eval(l));
+        Reflectance::Spectral { spectrum, rgb }
+    }
+
+    /// The reflectance at a path's wavelengths and the albedo buffer's RGB, at (u, v).
+    pub fn at(&self, u: f32, v: f32, wl: &Wavelengths) -> (Lanes, [f32; 3]) {
+        match self {
+            Reflectance::Texture(t) => {
+                let rgb = t.eval(u, v);
+                (Spectrum::Rgb(rgb).sample(wl), rgb)
+            }
+            Reflectance::Spectral { spectrum, rgb } => (spectrum.sample(wl), *rgb),
+        }
+    }
+}
+
 /// A surface material.
 #[derive(Clone, Debug)]
 pub enum Material {
     /// Lambertian reflection; the texture's RGB is uplifted to a spectrum at each hit.
     Diffuse {
         /// Reflectance in [0, 1].
-        reflectance: Texture,
+        reflectance: Reflectance,
     },
     /// A metal: complex Fresnel per wavelength, mirror or GGX microfacets.
     Conductor {
@@ -63,18 +98,21 @@ pub enum Material {
     /// A smooth or rough dielectric coat (index `ior`) over a Lambertian base.
     Plastic {
         /// Base reflectance.
-        reflectance: Texture,
+        reflectance: Reflectance,
         /// Coat index.
         ior: f32,
         /// Coat GGX alpha (0 = smooth).
         roughness: Texture,
     },
-    /// An emitter (two-sided, black): `radiance` times `scale`.
+    /// An emitter (black): `radiance` times `scale`, from its front side only unless
+    /// `two_sided` (a quad's or triangle's front faces along `e1 x e2`, a sphere's outwards).
     Emitter {
         /// Spectral shape.
         radiance: Spectrum,
         /// Multiplier; scenes divide by the shape's luminance so `scale` means brightness.
         scale: f32,
+        /// Emits from both sides.
+        two_sided: bool,
     },
 }
 
@@ -82,17 +120,24 @@ pub enum Material {
 pub const SMOOTH: f32 = 1e-3;
 
 /// Normal-incidence reflectance of a metal as linear sRGB (for the albedo buffer):
-/// Fresnel at 0 degrees averaged over the CMFs and converted like the film does.
+/// Fresnel at 0 degrees seen under D65 and converted like the film does.
 pub fn metal_albedo(m: &Metal) -> [f32; 3] {
+    spectral_albedo(|l| fresnel_conductor(1.0, m.eta.eval(l), m.k.eval(l)))
+}
+
+/// A reflectance spectrum's colour under D65 (sRGB's white) as linear sRGB clamped to
+/// [0, 1], for the albedo buffer: a flat reflectance gives grey.
+fn spectral_albedo(r: impl Fn(f32) -> f32) -> [f32; 3] {
+    let d65 = Spectrum::d65();
     let mut xyz = [0.0f64; 3];
     let mut ysum = 0.0;
     for l in 380..=780 {
-        let r = fresnel_conductor(1.0, m.eta.eval(l as f32), m.k.eval(l as f32)) as f64;
+        let (v, e) = (r(l as f32) as f64, d65.eval(l as f32) as f64);
         let c = temc_color::cie::cmf(l as f64);
         for i in 0..3 {
-            xyz[i] += c[i] * r;
+            xyz[i] += c[i] * v * e;
         }
-        ysum += c[1];
+        ysum += c[1] * e;
     }
     let rgb = temc_color::cie::xyz_to_linear_srgb(xyz.map(|v| v / ysum));
     rgb.map(|v| v.clamp(0.0, 1.0))

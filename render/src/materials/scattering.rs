@@ -61,6 +61,33 @@ pub fn ggx_g1(cos: f32, alpha: f32) -> f32 {
     2.0 / (1.0 + (1.0 + alpha * alpha * tan2).sqrt())
 }
 
+/// GGX's distribution of normals D(m) for a microfacet normal at `cos_m` from the macro
+/// normal.
+pub fn ggx_d(cos_m: f32, alpha: f32) -> f32 {
+    if cos_m <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let t = cos_m * cos_m * (a2 - 1.0) + 1.0;
+    a2 / (PI * t * t)
+}
+
+/// GGX reflection from `wo` into `wi` about the macro normal `n` (all unit, pointing away):
+/// the BSDF times cos(wi) without the Fresnel factor, the solid-angle density with which
+/// visible-normal sampling picks `wi`, and the cosine between `wo` and the half vector
+/// (the Fresnel factor's angle). `None` when either direction is below the surface.
+pub fn ggx_reflection(wo: V3, wi: V3, n: V3, alpha: f32) -> Option<(f32, f32, f32)> {
+    let (cos_o, cos_i) = (wo.dot(n), wi.dot(n));
+    if cos_o <= 0.0 || cos_i <= 0.0 {
+        return None;
+    }
+    let h = (wo + wi).norm();
+    let d = ggx_d(h.dot(n), alpha);
+    let g1o = ggx_g1(cos_o, alpha);
+    let pdf = g1o * d / (4.0 * cos_o);
+    Some((pdf * ggx_g1(cos_i, alpha), pdf, wo.dot(h).max(0.0)))
+}
+
 /// A microfacet normal sampled from GGX's distribution of visible normals (Heitz 2018),
 /// for `wo` in the local frame where the macro normal is +z.
 pub fn ggx_sample_vndf(wo: V3, alpha: f32, u1: f32, u2: f32) -> V3 {
@@ -122,6 +149,58 @@ mod tests {
         let sin_t = (t.0 * t.0 + t.1 * t.1).sqrt();
         assert!((sin_i - 1.5 * sin_t).abs() < 1e-5);
         assert!(t.2 < 0.0);
+    }
+
+    #[test]
+    fn ggx_density_matches_visible_normal_sampling() {
+        // Histogram the reflected directions of VNDF samples over cells of (cos, phi) and
+        // compare each cell's frequency with the density `ggx_reflection` gives for it.
+        let n = V3(0.0, 0.0, 1.0);
+        let (alpha, wo) = (0.3, V3(0.4, 0.0, 0.9165).norm());
+        let (cells, samples) = (8usize, 400_000usize);
+        let mut hist = vec![0usize; cells * cells];
+        let mut rng = crate::rng::Rng::new(5, 6);
+        let mut below = 0;
+        for _ in 0..samples {
+            let m = ggx_sample_vndf(wo, alpha, rng.uniform(), rng.uniform());
+            let wi = reflect(wo, m);
+            if wi.2 <= 0.0 {
+                below += 1;
+                continue;
+            }
+            let c = ((wi.2 * cells as f32) as usize).min(cells - 1);
+            let phi = wi.1.atan2(wi.0).rem_euclid(2.0 * PI);
+            let p = ((phi / (2.0 * PI) * cells as f32) as usize).min(cells - 1);
+            hist[c * cells + p] += 1;
+        }
+        // The density integrated over each cell (solid angle = dcos dphi) by midpoints.
+        let sub = 24;
+        let mut total = 0.0;
+        for c in 0..cells {
+            for p in 0..cells {
+                let mut mass = 0.0;
+                for i in 0..sub {
+                    for j in 0..sub {
+                        let cos = (c as f32 + (i as f32 + 0.5) / sub as f32) / cells as f32;
+                        let phi = (p as f32 + (j as f32 + 0.5) / sub as f32) / cells as f32;
+                        let phi = phi * 2.0 * PI;
+                        let sin = (1.0 - cos * cos).sqrt();
+                        let wi = V3(sin * phi.cos(), sin * phi.sin(), cos);
+                        let (_, pdf, _) = ggx_reflection(wo, wi, n, alpha).unwrap();
+                        mass += pdf / (sub * sub) as f32 / cells as f32 * 2.0 * PI / cells as f32;
+                    }
+                }
+                total += mass;
+                let freq = hist[c * cells + p] as f32 / samples as f32;
+                assert!(
+                    (freq - mass).abs() < 0.1 * mass + 2e-3,
+                    "cell ({c}, {p}): sampled {freq}, density {mass}"
+                );
+            }
+        }
+        // What the density misses is what sampling sends below the surface.
+        let lost = below as f32 / samples as f32;
+        assert!((total + lost - 1.0).abs() < 0.01, "{total} + {lost}");
     }
 
     #[test]

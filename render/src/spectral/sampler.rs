@@ -17,8 +17,13 @@ pub enum LambdaSampler {
         pdf: Vec<f32>,
         /// Cumulative distribution at bin ends (last = 1).
         cdf: Vec<f32>,
+        /// For each of `GUIDE` equal steps of u, the first bin whose end lies past the
+        /// step's start: the search starts there instead of bisecting the whole table.
+        guide: Vec<u32>,
     },
 }
+
+const GUIDE: usize = 1024;
 
 const BIN: f32 = 0.25;
 
@@ -56,9 +61,13 @@ impl LambdaSampler {
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
+        let guide = (0..GUIDE)
+            .map(|k| cdf.partition_point(|&c| c <= k as f32 / GUIDE as f32) as u32)
+            .collect();
         LambdaSampler::Table {
             pdf: pdf.iter().map(|p| (p / total) as f32).collect(),
             cdf,
+            guide,
         }
     }
 
@@ -66,14 +75,18 @@ impl LambdaSampler {
     pub fn sample(&self, u: f32) -> Wavelengths {
         match self {
             LambdaSampler::Visible => Wavelengths::sample(u),
-            LambdaSampler::Table { pdf, cdf } => {
+            LambdaSampler::Table { pdf, cdf, guide } => {
                 let mut wl = Wavelengths {
                     lambda: [0.0; LANES],
                     pdf: [0.0; LANES],
                 };
                 for i in 0..LANES {
                     let ui = (u + i as f32 / LANES as f32).fract();
-                    let b = cdf.partition_point(|&c| c <= ui).min(cdf.len() - 1);
+                    let k = ((ui * GUIDE as f32) as usize).min(GUIDE - 1);
+                    let lo = guide[k] as usize;
+                    let hi = guide.get(k + 1).map_or(cdf.len(), |&g| g as usize + 1);
+                    let hi = hi.min(cdf.len());
+                    let b = (lo + cdf[lo..hi].partition_point(|&c| c <= ui)).min(cdf.len() - 1);
                     let lo = if b == 0 { 0.0 } else { cdf[b - 1] };
                     let f = ((ui - lo) / (cdf[b] - lo).max(1e-12)).clamp(0.0, 1.0);
                     wl.lambda[i] = LAMBDA_MIN + (b as f32 + f) * BIN;
@@ -93,7 +106,7 @@ mod tests {
     fn tabulated_sampler_integrates_spiky_spectra() {
         let lamp = Spectrum::fluorescent();
         let sampler = LambdaSampler::for_emitters(&[&lamp]);
-        let LambdaSampler::Table { pdf, .. } = &sampler else {
+        let LambdaSampler::Table { pdf, cdf, .. } = &sampler else {
             unreachable!()
         };
         assert!((pdf.iter().sum::<f32>() * BIN - 1.0).abs() < 1e-3);
@@ -116,5 +129,16 @@ mod tests {
         }
         est /= (n * LANES) as f64;
         assert!((est / exact - 1.0).abs() < 5e-3, "{est} vs {exact}");
+        // The guided search finds the bin bisection finds.
+        for k in 0..10_000 {
+            let u = k as f32 / 10_000.0;
+            let wl = sampler.sample(u);
+            let b = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+            let lo = LAMBDA_MIN + b as f32 * BIN;
+            assert!(
+                wl.lambda[0] >= lo - 1e-3 && wl.lambda[0] <= lo + BIN + 1e-3,
+                "{u}"
+            );
+        }
     }
 }

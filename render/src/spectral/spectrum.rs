@@ -1,6 +1,8 @@
 //! Spectral distributions: constants, blackbodies, RGB reflectance uplift, emission lines
 //! and measured tables.
 
+use std::sync::Arc;
+
 use crate::spectral::wavelengths::{Lanes, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
 
 /// A spectral distribution over wavelength.
@@ -23,6 +25,9 @@ pub enum Spectrum {
     /// Piecewise-linear samples every 10 nm from 360 nm (measured data), held flat
     /// outside the table.
     Tabulated(&'static [f32; 48]),
+    /// Piecewise-linear (wavelength nm, value) pairs with increasing wavelengths, held flat
+    /// outside the table: measured data a scene file gives inline or from a CSV file.
+    Sampled(Arc<[(f32, f32)]>),
 }
 
 fn planck(l_nm: f32, t: f32) -> f32 {
@@ -57,9 +62,12 @@ impl Spectrum {
                 c[0] * b[0] + c[1] * b[1] + c[2] * b[2]
             }
             Spectrum::Lines { floor, lines } => {
+                // Past 8 widths a line is below 1e-14 of its height: skip its exp (the
+                // hot path's most expensive call under a spiky lamp).
                 floor
                     + lines
                         .iter()
+                        .filter(|&&(c, w, _)| (l - c).abs() < 8.0 * w)
                         .map(|&(c, w, h)| h * (-0.5 * ((l - c) / w).powi(2)).exp())
                         .sum::<f32>()
             }
@@ -69,6 +77,7 @@ impl Spectrum {
                 let f = x - i as f32;
                 t[i] * (1.0 - f) + t[i + 1] * f
             }
+            Spectrum::Sampled(t) => sampled(t, l),
         }
     }
 
@@ -105,7 +114,41 @@ impl Spectrum {
     /// (line lamps, lasers): such emitters make the renderer sample wavelengths from the
     /// emitters' own spectra.
     pub fn is_spiky(&self) -> bool {
-        matches!(self, Spectrum::Lines { lines, .. } if lines.iter().any(|l| l.1 < 10.0))
+        match self {
+            Spectrum::Lines { lines, .. } => lines.iter().any(|l| l.1 < 10.0),
+            // A measured line: a value at least twice its neighbour's within 10 nm.
+            Spectrum::Sampled(t) => t.windows(2).any(|w| {
+                let (lo, hi) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
+                w[1].0 - w[0].0 < 10.0 && hi > 2.0 * lo
+            }),
+            _ => false,
+        }
+    }
+
+    /// A spectrum from (wavelength nm, value) pairs: at least two, wavelengths strictly
+    /// increasing within 200..2000 nm, values finite and in `range`.
+    pub fn sampled(points: Vec<(f32, f32)>, range: (f32, f32)) -> Result<Self, String> {
+        if points.len() < 2 {
+            return Err("a table needs at least two (nm, value) pairs".into());
+        }
+        for (k, &(l, v)) in points.iter().enumerate() {
+            if !(200.0..=2000.0).contains(&l) {
+                return Err(format!("wavelength {l} nm is outside 200..2000"));
+            }
+            if k > 0 && l <= points[k - 1].0 {
+                return Err(format!(
+                    "wavelengths must increase: {l} nm after {} nm",
+                    points[k - 1].0
+                ));
+            }
+            if !(v.is_finite() && (range.0..=range.1).contains(&v)) {
+                return Err(format!(
+                    "value {v} at {l} nm is outside {}..{}",
+                    range.0, range.1
+                ));
+            }
+        }
+        Ok(Spectrum::Sampled(points.into()))
     }
 
     /// The values at a path's four wavelengths.
@@ -124,6 +167,19 @@ impl Spectrum {
         }
         sum / cie_y_integral()
     }
+}
+
+/// Piecewise-linear interpolation in a table of increasing wavelengths, flat outside.
+fn sampled(t: &[(f32, f32)], l: f32) -> f32 {
+    let k = t.partition_point(|p| p.0 < l);
+    if k == 0 {
+        return t[0].1;
+    }
+    if k == t.len() {
+        return t[k - 1].1;
+    }
+    let ((l0, v0), (l1, v1)) = (t[k - 1], t[k]);
+    v0 + (v1 - v0) * (l - l0) / (l1 - l0)
 }
 
 /// Integral of the CMF fit's y-bar over 360..830 nm at 1 nm steps.
@@ -170,6 +226,28 @@ mod tests {
             (cx - 0.3127).abs() < 0.004 && (cy - 0.3290).abs() < 0.004,
             "{cx} {cy}"
         );
+    }
+
+    #[test]
+    fn sampled_spectra_interpolate_and_find_their_lines() {
+        let s =
+            Spectrum::sampled(vec![(400.0, 0.0), (500.0, 1.0), (600.0, 0.5)], (0.0, 1.0)).unwrap();
+        assert_eq!(s.eval(300.0), 0.0);
+        assert!((s.eval(450.0) - 0.5).abs() < 1e-6);
+        assert!((s.eval(550.0) - 0.75).abs() < 1e-6);
+        assert_eq!(s.eval(900.0), 0.5);
+        assert!(!s.is_spiky());
+        let line = vec![(540.0, 0.1), (545.0, 10.0), (550.0, 0.1)];
+        assert!(Spectrum::sampled(line, (0.0, f32::MAX)).unwrap().is_spiky());
+        for (bad, msg) in [
+            (vec![(400.0, 0.5)], "at least two"),
+            (vec![(500.0, 0.5), (400.0, 0.5)], "must increase"),
+            (vec![(400.0, 0.5), (500.0, 1.5)], "outside 0..1"),
+            (vec![(100.0, 0.5), (500.0, 0.5)], "200..2000"),
+        ] {
+            let e = Spectrum::sampled(bad, (0.0, 1.0)).unwrap_err();
+            assert!(e.contains(msg), "{e}");
+        }
     }
 
     #[test]

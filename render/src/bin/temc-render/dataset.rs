@@ -277,7 +277,7 @@ fn render_scene(
         // Seeded by the scene's name, so the order of work does not matter.
         seed: opts.seed ^ fnv1a(name.as_bytes()),
         max_depth: 12,
-        specialise: true,
+        kernel: None,
     };
     let t0 = Instant::now();
     let noisy = render_progressive(&sc, &base, &opts.spp, progress, cancel)

@@ -150,7 +150,9 @@ fn render(a: RenderArgs, cancel: &AtomicBool) -> Result<(), String> {
         spp: a.spp,
         seed: a.seed,
         max_depth: a.max_depth,
-        specialise: !a.general,
+        kernel: a
+            .general
+            .then_some(temc_render::integrator::Kernel::GENERAL),
     };
     let kernel = temc_render::kernel_for(&sc, &settings);
     let b = bar(h as u64);
