@@ -131,6 +131,13 @@ impl Scene {
             prims.extend(shape);
         }
         let bvh = Bvh::build(&prims);
+        let mut materials = materials;
+        for m in &mut materials {
+            if let Material::Emitter { radiance, .. } = m {
+                *radiance = radiance.dense();
+            }
+        }
+        let environment = environment.map(|(s, scale)| (s.dense(), scale));
         let lights = Lights::new(&prims, &prim_material, &materials);
         Scene {
             name: name.into(),

@@ -59,16 +59,16 @@ def read_exr(path: str) -> dict:
 
 def camera_frame(scene_text: str) -> np.ndarray:
     """Rows: the camera's right, up and backward axes in world space, as temc-render builds
-    them (right = world up x forward)."""
+    them (right = forward x world up, so the camera's right is the image's +x)."""
     for line in scene_text.splitlines():
         t = line.split("#")[0].split()
         if t and t[0] == "camera":
             eye = np.array([float(v) for v in t[t.index("eye") + 1:t.index("eye") + 4]])
             tgt = np.array([float(v) for v in t[t.index("target") + 1:t.index("target") + 4]])
             fwd = (tgt - eye) / np.linalg.norm(tgt - eye)
-            right = np.cross([0.0, 1.0, 0.0], fwd)
+            right = np.cross(fwd, [0.0, 1.0, 0.0])
             right /= np.linalg.norm(right)
-            up = np.cross(fwd, right)
+            up = np.cross(right, fwd)
             return np.stack([right, up, -fwd]).astype(np.float32)
     return np.eye(3, dtype=np.float32)
 

@@ -120,8 +120,10 @@ def test_auto_exposure_matches_the_core_rule():
 
 
 def test_camera_frame_matches_the_renderer():
+    # Looking along +z in a right-handed world with y up, +x lies on the camera's left
+    # (render/src/camera.rs).
     f = data.camera_frame("camera eye 0 0 -3 target 0 0 0 fov 40")
-    assert np.allclose(f, [[1, 0, 0], [0, 1, 0], [0, 0, -1]], atol=1e-6)
+    assert np.allclose(f, [[-1, 0, 0], [0, 1, 0], [0, 0, -1]], atol=1e-6)
 
 
 def test_training_resumes_and_exports(dataset, tmp_path):

@@ -28,6 +28,20 @@ pub enum Spectrum {
     /// Piecewise-linear (wavelength nm, value) pairs with increasing wavelengths, held flat
     /// outside the table: measured data a scene file gives inline or from a CSV file.
     Sampled(Arc<[(f32, f32)]>),
+    /// An analytic spectrum tabulated finely over the renderer's range (see
+    /// [`Spectrum::dense`]).
+    Dense(Arc<Dense>),
+}
+
+/// Values every `1 / inv_step` nm from [`LAMBDA_MIN`] to [`LAMBDA_MAX`], interpolated
+/// linearly: what a scene stores for a blackbody or a line spectrum, whose exp calls were
+/// the hot path's most expensive arithmetic under such lamps.
+#[derive(Debug)]
+pub struct Dense {
+    values: Box<[f32]>,
+    inv_step: f32,
+    /// The analytic spectrum's [`Spectrum::is_spiky`].
+    spiky: bool,
 }
 
 fn planck(l_nm: f32, t: f32) -> f32 {
@@ -78,7 +92,38 @@ impl Spectrum {
                 t[i] * (1.0 - f) + t[i + 1] * f
             }
             Spectrum::Sampled(t) => sampled(t, l),
+            Spectrum::Dense(t) => {
+                let x = ((l - LAMBDA_MIN) * t.inv_step).clamp(0.0, (t.values.len() - 1) as f32);
+                let i = (x as usize).min(t.values.len() - 2);
+                let f = x - i as f32;
+                t.values[i] * (1.0 - f) + t.values[i + 1] * f
+            }
         }
+    }
+
+    /// The spectrum as a scene stores it: blackbodies and line spectra tabulated (a
+    /// blackbody every 0.5 nm, lines at a sixteenth of the narrowest width, at least
+    /// 0.005 nm, so the interpolation error stays below about 0.05 % of a line's peak);
+    /// every other kind as it is.
+    pub fn dense(&self) -> Spectrum {
+        let step = match self {
+            Spectrum::Blackbody(_) => 0.5,
+            Spectrum::Lines { lines, .. } => lines
+                .iter()
+                .map(|l| l.1 / 16.0)
+                .fold(0.5f32, f32::min)
+                .max(0.005),
+            _ => return self.clone(),
+        };
+        let n = ((LAMBDA_MAX - LAMBDA_MIN) / step).ceil() as usize + 1;
+        let values = (0..n)
+            .map(|k| self.eval(LAMBDA_MIN + k as f32 * step))
+            .collect();
+        Spectrum::Dense(Arc::new(Dense {
+            values,
+            inv_step: 1.0 / step,
+            spiky: self.is_spiky(),
+        }))
     }
 
     /// CIE standard illuminant D65.
@@ -121,6 +166,7 @@ impl Spectrum {
                 let (lo, hi) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
                 w[1].0 - w[0].0 < 10.0 && hi > 2.0 * lo
             }),
+            Spectrum::Dense(t) => t.spiky,
             _ => false,
         }
     }
@@ -207,6 +253,36 @@ mod tests {
                 assert!((0.0..=1.0).contains(&v));
             }
         }
+    }
+
+    #[test]
+    fn dense_spectra_follow_the_analytic_ones() {
+        for s in [
+            Spectrum::fluorescent(),
+            Spectrum::laser(532.0, 0.3),
+            Spectrum::Blackbody(2700.0),
+            Spectrum::Blackbody(9000.0),
+        ] {
+            let d = s.dense();
+            assert!(matches!(d, Spectrum::Dense(_)) && d.is_spiky() == s.is_spiky());
+            let peak = (0..=47000)
+                .map(|k| s.eval(360.0 + k as f32 * 0.01))
+                .fold(0.0, f32::max);
+            for k in 0..=47000 {
+                let l = 360.0 + k as f32 * 0.01;
+                let err = (d.eval(l) - s.eval(l)).abs();
+                assert!(
+                    err <= 1e-3 * peak,
+                    "{s:?} at {l} nm: {} vs {}",
+                    d.eval(l),
+                    s.eval(l)
+                );
+            }
+        }
+        assert!(matches!(
+            Spectrum::Constant(2.0).dense(),
+            Spectrum::Constant(_)
+        ));
     }
 
     #[test]
