@@ -431,3 +431,36 @@ fn direct_light_matches_quadrature() {
         );
     }
 }
+
+#[test]
+fn saturated_reflectances_keep_their_colour_under_daylight() {
+    // A floor under a D65 sky reflects rho(lambda) x D65, whose colour is the floor's RGB
+    // exactly when the uplift round-trips under D65 (the sky is luminance-normalised, so
+    // its own colour is white 1). The partition-of-unity uplift before Jakob & Hanika's
+    // rendered the red (0.8, 0.1, 0.1) as (0.94, 0.13, 0.08).
+    use temc_render::description::format;
+    for rgb in [
+        [0.8, 0.1, 0.1],
+        [0.1, 0.6, 0.15],
+        [0.1, 0.15, 0.7],
+        [0.8, 0.7, 0.1],
+    ] {
+        let text = format!(
+            "camera eye 0 1 0.5 target 0 0 0 fov 10\nenvironment d65\n\
+             material floor diffuse reflectance rgb {} {} {}\n\
+             quad corner -50 0 -50 edge1 0 0 100 edge2 100 0 0 material floor\n",
+            rgb[0], rgb[1], rgb[2]
+        );
+        let sc = format::parse(&text, "daylight", None).unwrap();
+        let img = render(&sc, &settings(8, 8, 256, 9));
+        let n = img.color.len() as f32;
+        let seen: [f32; 3] =
+            std::array::from_fn(|i| img.color.iter().map(|c| c[i]).sum::<f32>() / n);
+        for i in 0..3 {
+            assert!(
+                (seen[i] - rgb[i]).abs() < 0.015,
+                "rgb {rgb:?} rendered as {seen:?}"
+            );
+        }
+    }
+}

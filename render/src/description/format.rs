@@ -185,7 +185,18 @@ impl<'a> Cursor<'a> {
                 };
                 Ok(Spectrum::laser(nm, w))
             }
-            "rgb" => Ok(Spectrum::Rgb(self.rgb("an rgb spectrum")?)),
+            "rgb" => {
+                let rgb = self.rgb("an rgb spectrum")?;
+                if range.1 <= 1.0 {
+                    Ok(Spectrum::rgb_reflectance(rgb))
+                } else if range == EMISSION {
+                    Ok(Spectrum::rgb_illuminant(rgb))
+                } else {
+                    Err("rgb is for reflectances and emitters; give optical constants as a \
+                         constant, a table or a CSV file"
+                        .into())
+                }
+            }
             "table" => {
                 let mut points = Vec::new();
                 while self.next_is_num() {

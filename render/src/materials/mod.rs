@@ -7,6 +7,7 @@ pub mod scattering;
 pub mod texture;
 
 use crate::spectral::spectrum::Spectrum;
+use crate::spectral::uplift;
 use crate::spectral::wavelengths::{Lanes, Wavelengths};
 use ior::Ior;
 use scattering::fresnel_conductor;
@@ -64,7 +65,8 @@ impl Reflectance {
         match self {
             Reflectance::Texture(t) => {
                 let rgb = t.eval(u, v);
-                (Spectrum::Rgb(rgb).sample(wl), rgb)
+                let r = uplift::reflectance(rgb);
+                (wl.lambda.map(|l| r.eval(l)), rgb)
             }
             Reflectance::Spectral { spectrum, rgb } => (spectrum.sample(wl), *rgb),
         }

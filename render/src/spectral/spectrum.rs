@@ -1,8 +1,9 @@
-//! Spectral distributions: constants, blackbodies, RGB reflectance uplift, emission lines
-//! and measured tables.
+//! Spectral distributions: constants, blackbodies, uplifted RGB reflectances and emitters,
+//! emission lines and measured tables.
 
 use std::sync::Arc;
 
+use crate::spectral::uplift::{self, Illuminant, SigmoidPoly};
 use crate::spectral::wavelengths::{Lanes, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
 
 /// A spectral distribution over wavelength.
@@ -12,8 +13,11 @@ pub enum Spectrum {
     Constant(f32),
     /// Planck's law at a temperature in K, normalised to a peak of 1.
     Blackbody(f32),
-    /// A reflectance built from linear RGB in [0, 1] (see [`Spectrum::eval`]).
-    Rgb([f32; 3]),
+    /// A reflectance given as linear sRGB in [0, 1], uplifted smoothly (Jakob & Hanika
+    /// 2019, [`uplift::reflectance`]).
+    RgbReflectance(SigmoidPoly),
+    /// An emitter given as linear sRGB: a smooth spectrum times D65 ([`uplift::illuminant`]).
+    RgbIlluminant(Illuminant),
     /// Gaussian emission lines (centre nm, width nm, height) on a constant floor: a
     /// synthetic spiky lamp, like the CIE F-series (mercury lines plus phosphors).
     Lines {
@@ -51,17 +55,6 @@ fn planck(l_nm: f32, t: f32) -> f32 {
     (c1 / (l.powi(5) * ((c2 / (l * t as f64)).exp() - 1.0))) as f32
 }
 
-/// Smooth partition of unity over blue, green and red: the RGB uplift. Each basis is 1 in
-/// its band and blends over 20 nm, so (1, 1, 1) gives exactly 1 and every RGB in [0, 1]
-/// gives a reflectance in [0, 1] (energy conserving, unlike unbounded fits).
-fn rgb_basis(l: f32) -> [f32; 3] {
-    let s = |a: f32, b: f32| ((l - a) / (b - a)).clamp(0.0, 1.0);
-    let smooth = |t: f32| t * t * (3.0 - 2.0 * t);
-    let to_green = smooth(s(480.0, 500.0));
-    let to_red = smooth(s(570.0, 590.0));
-    [to_red, to_green * (1.0 - to_red), 1.0 - to_green]
-}
-
 impl Spectrum {
     /// The value at `l` nm.
     pub fn eval(&self, l: f32) -> f32 {
@@ -71,10 +64,8 @@ impl Spectrum {
                 let peak = 2.897_772e6 / t; // Wien's displacement law, nm
                 planck(l, *t) / planck(peak, *t)
             }
-            Spectrum::Rgb(c) => {
-                let b = rgb_basis(l);
-                c[0] * b[0] + c[1] * b[1] + c[2] * b[2]
-            }
+            Spectrum::RgbReflectance(p) => p.eval(l),
+            Spectrum::RgbIlluminant(e) => e.eval(l),
             Spectrum::Lines { floor, lines } => {
                 // Past 8 widths a line is below 1e-14 of its height: skip its exp (the
                 // hot path's most expensive call under a spiky lamp).
@@ -124,6 +115,16 @@ impl Spectrum {
             inv_step: 1.0 / step,
             spiky: self.is_spiky(),
         }))
+    }
+
+    /// The reflectance of linear sRGB `rgb` (clamped to [0, 1]).
+    pub fn rgb_reflectance(rgb: [f32; 3]) -> Self {
+        Spectrum::RgbReflectance(uplift::reflectance(rgb))
+    }
+
+    /// An emitter of linear sRGB `rgb`: seen directly, its colour is `rgb`.
+    pub fn rgb_illuminant(rgb: [f32; 3]) -> Self {
+        Spectrum::RgbIlluminant(uplift::illuminant(rgb))
     }
 
     /// CIE standard illuminant D65.
@@ -244,12 +245,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn rgb_uplift_is_bounded_and_white_is_flat() {
+    fn rgb_reflectances_are_bounded_and_white_is_flat() {
         for l in (360..=830).step_by(5) {
             let l = l as f32;
-            assert!((Spectrum::Rgb([1.0; 3]).eval(l) - 1.0).abs() < 1e-6);
+            assert!((Spectrum::rgb_reflectance([1.0; 3]).eval(l) - 1.0).abs() < 1e-4);
             for c in [[1.0, 0.0, 0.0], [0.2, 0.9, 0.4], [0.0, 0.0, 0.0]] {
-                let v = Spectrum::Rgb(c).eval(l);
+                let v = Spectrum::rgb_reflectance(c).eval(l);
                 assert!((0.0..=1.0).contains(&v));
             }
         }
