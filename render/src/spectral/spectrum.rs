@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use crate::spectral::uplift::{self, Illuminant, SigmoidPoly};
-use crate::spectral::wavelengths::{Lanes, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
+use crate::spectral::wavelengths::{Lanes, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, LANES};
 
 /// A spectral distribution over wavelength.
 #[derive(Clone, Debug)]
@@ -48,6 +48,16 @@ pub struct Dense {
     spiky: bool,
 }
 
+impl Dense {
+    #[inline]
+    fn eval(&self, l: f32) -> f32 {
+        let x = ((l - LAMBDA_MIN) * self.inv_step).clamp(0.0, (self.values.len() - 1) as f32);
+        let i = (x as usize).min(self.values.len() - 2);
+        let f = x - i as f32;
+        self.values[i] * (1.0 - f) + self.values[i + 1] * f
+    }
+}
+
 fn planck(l_nm: f32, t: f32) -> f32 {
     let l = l_nm as f64 * 1e-9;
     let c1 = 3.741_771_852e-16;
@@ -83,12 +93,7 @@ impl Spectrum {
                 t[i] * (1.0 - f) + t[i + 1] * f
             }
             Spectrum::Sampled(t) => sampled(t, l),
-            Spectrum::Dense(t) => {
-                let x = ((l - LAMBDA_MIN) * t.inv_step).clamp(0.0, (t.values.len() - 1) as f32);
-                let i = (x as usize).min(t.values.len() - 2);
-                let f = x - i as f32;
-                t.values[i] * (1.0 - f) + t.values[i + 1] * f
-            }
+            Spectrum::Dense(t) => t.eval(l),
         }
     }
 
@@ -200,7 +205,13 @@ impl Spectrum {
 
     /// The values at a path's four wavelengths.
     pub fn sample(&self, wl: &Wavelengths) -> Lanes {
-        wl.lambda.map(|l| self.eval(l))
+        // One dispatch for the four lanes on the kinds the hot path meets most.
+        match self {
+            Spectrum::Constant(v) => [*v; LANES],
+            Spectrum::RgbReflectance(p) => wl.lambda.map(|l| p.eval(l)),
+            Spectrum::Dense(t) => wl.lambda.map(|l| t.eval(l)),
+            _ => wl.lambda.map(|l| self.eval(l)),
+        }
     }
 
     /// Luminance-normalised copy factor: 1 / integral of y-bar times the spectrum, so
