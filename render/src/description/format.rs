@@ -32,6 +32,11 @@
 //! `table 540 0.02 545 3 550 0.02 ...`; narrow peaks make the renderer sample wavelengths
 //! from the emitters' spectra.
 //!
+//! `rgb R G B` (linear sRGB in [0, 1]) is uplifted smoothly ([`crate::spectral::uplift`]):
+//! as a reflectance, to a spectrum whose colour under D65 is the RGB; as an emitter, to such
+//! a spectrum times D65, whose colour seen directly is the RGB. It is refused for a
+//! conductor's or dielectric's optical constants.
+//!
 //! Emitters are one-sided: a quad or triangle emits along `edge1 x edge2`, a sphere outwards;
 //! `two-sided` emits from both faces. Emitter and environment `scale` is a luminance: the
 //! spectrum is divided by its own luminance first, so a D65 lamp and a laser with the same
