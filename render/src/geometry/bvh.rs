@@ -1,7 +1,7 @@
 //! A bounding volume hierarchy over all primitives of a scene (binned SAH build,
 //! ordered stack traversal).
 
-use crate::geometry::shape::{Aabb, Prim, PrimHit};
+use crate::geometry::shape::{Aabb, Packed, Prim, PrimHit};
 use crate::geometry::vec3::V3;
 
 #[derive(Clone, Copy, Debug)]
@@ -23,65 +23,6 @@ pub struct Bvh {
     order: Vec<u32>,
     /// The primitives in leaf order, in the form the intersection test wants.
     packed: Vec<Packed>,
-}
-
-/// A primitive prepared for the ray test: quads keep their normal and edges scaled by
-/// their inverse squared lengths, so a test needs no cross product or division but one.
-#[derive(Clone, Copy, Debug)]
-enum Packed {
-    Sphere { c: V3, r2: f32 },
-    Quad { p: V3, n: V3, e1: V3, e2: V3 },
-    Triangle { p0: V3, e1: V3, e2: V3 },
-}
-
-impl Packed {
-    fn new(p: &Prim) -> Self {
-        match *p {
-            Prim::Sphere { c, r } => Packed::Sphere { c, r2: r * r },
-            Prim::Quad { p, e1, e2 } => Packed::Quad {
-                p,
-                n: e1.cross(e2),
-                e1: e1 / e1.dot(e1),
-                e2: e2 / e2.dot(e2),
-            },
-            Prim::Triangle { p0, e1, e2 } => Packed::Triangle { p0, e1, e2 },
-        }
-    }
-
-    /// The same test as [`Prim::hit_t`].
-    #[inline]
-    fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
-        match *self {
-            Packed::Sphere { c, r2 } => {
-                let oc = o - c;
-                let b = oc.dot(d);
-                let disc = b * b - (oc.dot(oc) - r2);
-                if disc < 0.0 {
-                    return None;
-                }
-                let s = disc.sqrt();
-                [-b - s, -b + s]
-                    .into_iter()
-                    .find(|&t| t > t_min && t < t_max)
-            }
-            Packed::Quad { p, n, e1, e2 } => {
-                let denom = n.dot(d);
-                if denom.abs() < 1e-12 {
-                    return None;
-                }
-                let t = n.dot(p - o) / denom;
-                if t <= t_min || t >= t_max {
-                    return None;
-                }
-                let q = o + d * t - p;
-                let (a, b) = (q.dot(e1), q.dot(e2));
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
-            }
-            Packed::Triangle { p0, e1, e2 } => {
-                Prim::Triangle { p0, e1, e2 }.hit_t(o, d, t_min, t_max)
-            }
-        }
-    }
 }
 
 const BINS: usize = 12;

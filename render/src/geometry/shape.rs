@@ -115,58 +115,9 @@ impl Prim {
     }
 
     /// The distance of the nearest intersection with `t` in (t_min, t_max), without the
-    /// surface details: the BVH tests many primitives and needs those of one.
+    /// surface details (the BVH keeps its primitives packed and calls [`Packed::hit_t`]).
     pub fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
-        match *self {
-            Prim::Sphere { c, r } => {
-                let oc = o - c;
-                let b = oc.dot(d);
-                let cc = oc.dot(oc) - r * r;
-                let disc = b * b - cc;
-                if disc < 0.0 {
-                    return None;
-                }
-                let s = disc.sqrt();
-                [-b - s, -b + s]
-                    .into_iter()
-                    .find(|&t| t > t_min && t < t_max)
-            }
-            Prim::Quad { p, e1, e2 } => {
-                let n = e1.cross(e2);
-                let denom = n.dot(d);
-                if denom.abs() < 1e-12 {
-                    return None;
-                }
-                let t = n.dot(p - o) / denom;
-                if t <= t_min || t >= t_max {
-                    return None;
-                }
-                let q = o + d * t - p;
-                let (a, b) = (q.dot(e1) / e1.dot(e1), q.dot(e2) / e2.dot(e2));
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
-            }
-            Prim::Triangle { p0, e1, e2 } => {
-                // Moeller-Trumbore.
-                let pv = d.cross(e2);
-                let det = e1.dot(pv);
-                if det.abs() < 1e-12 {
-                    return None;
-                }
-                let inv = 1.0 / det;
-                let tv = o - p0;
-                let u = tv.dot(pv) * inv;
-                if !(0.0..=1.0).contains(&u) {
-                    return None;
-                }
-                let qv = tv.cross(e1);
-                let v = d.dot(qv) * inv;
-                if v < 0.0 || u + v > 1.0 {
-                    return None;
-                }
-                let t = e2.dot(qv) * inv;
-                (t > t_min && t < t_max).then_some(t)
-            }
-        }
+        Packed::new(self).hit_t(o, d, t_min, t_max)
     }
 
     /// The outward normal and texture coordinates at the point `x` (at distance `t`) where
@@ -385,6 +336,84 @@ pub fn sphere_cone_pdf(p: V3, c: V3, r: f32) -> f32 {
     }
     let cos_max = (1.0 - r * r / d2).max(0.0).sqrt();
     1.0 / (2.0 * PI * (1.0 - cos_max)).max(1e-12)
+}
+
+/// A primitive prepared for the ray test: quads keep their normal and edges scaled by
+/// their inverse squared lengths, so a test needs no cross product or division but one.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Packed {
+    Sphere { c: V3, r2: f32 },
+    Quad { p: V3, n: V3, e1: V3, e2: V3 },
+    Triangle { p0: V3, e1: V3, e2: V3 },
+}
+
+impl Packed {
+    /// The packed form of `p`.
+    pub(crate) fn new(p: &Prim) -> Self {
+        match *p {
+            Prim::Sphere { c, r } => Packed::Sphere { c, r2: r * r },
+            Prim::Quad { p, e1, e2 } => Packed::Quad {
+                p,
+                n: e1.cross(e2),
+                e1: e1 / e1.dot(e1),
+                e2: e2 / e2.dot(e2),
+            },
+            Prim::Triangle { p0, e1, e2 } => Packed::Triangle { p0, e1, e2 },
+        }
+    }
+
+    /// The distance of the nearest intersection with `t` in (t_min, t_max).
+    #[inline]
+    pub(crate) fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
+        match *self {
+            Packed::Sphere { c, r2 } => {
+                let oc = o - c;
+                let b = oc.dot(d);
+                let disc = b * b - (oc.dot(oc) - r2);
+                if disc < 0.0 {
+                    return None;
+                }
+                let s = disc.sqrt();
+                [-b - s, -b + s]
+                    .into_iter()
+                    .find(|&t| t > t_min && t < t_max)
+            }
+            Packed::Quad { p, n, e1, e2 } => {
+                let denom = n.dot(d);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = n.dot(p - o) / denom;
+                if t <= t_min || t >= t_max {
+                    return None;
+                }
+                let q = o + d * t - p;
+                let (a, b) = (q.dot(e1), q.dot(e2));
+                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+            }
+            Packed::Triangle { p0, e1, e2 } => {
+                // Moeller-Trumbore.
+                let pv = d.cross(e2);
+                let det = e1.dot(pv);
+                if det.abs() < 1e-12 {
+                    return None;
+                }
+                let inv = 1.0 / det;
+                let tv = o - p0;
+                let u = tv.dot(pv) * inv;
+                if !(0.0..=1.0).contains(&u) {
+                    return None;
+                }
+                let qv = tv.cross(e1);
+                let v = d.dot(qv) * inv;
+                if v < 0.0 || u + v > 1.0 {
+                    return None;
+                }
+                let t = e2.dot(qv) * inv;
+                (t > t_min && t < t_max).then_some(t)
+            }
+        }
+    }
 }
 
 #[cfg(test)]

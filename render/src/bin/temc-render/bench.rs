@@ -64,6 +64,19 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
     Ok(())
 }
 
+/// A `size` x `size` render at `spp` with the scene's own kernel and max depth 12 (the
+/// baseline's `render` command is given the same).
+fn square(size: usize, spp: u32, seed: u64) -> Settings {
+    Settings {
+        width: size,
+        height: size,
+        spp,
+        seed,
+        max_depth: 12,
+        kernel: None,
+    }
+}
+
 /// One measured render: colour and the seconds the render itself took.
 struct Timed {
     color: Vec<[f32; 3]>,
@@ -185,14 +198,7 @@ fn efficiency(md: &mut String, a: &Args, cancel: &AtomicBool) -> Result<(), Stri
     );
     for name in BENCH_SCENES {
         let sc = named::scene(name).expect("a named scene");
-        let s = Settings {
-            width: size,
-            height: size,
-            spp,
-            seed: 7,
-            max_depth: 12,
-            kernel: None,
-        };
+        let s = square(size, spp, 7);
         timed(&sc, &Settings { spp: 1, ..s }, cancel)?; // warm-up
         let reference = timed(
             &sc,
@@ -277,14 +283,7 @@ fn specialisation(md: &mut String, a: &Args, cancel: &AtomicBool) -> Result<(), 
     let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|");
     for (name, _, _) in named::NAMED {
         let sc = named::scene(name).expect("a named scene");
-        let base = Settings {
-            width: size,
-            height: size,
-            spp,
-            seed: 11,
-            max_depth: 12,
-            kernel: None,
-        };
+        let base = square(size, spp, 11);
         let reference = timed(
             &sc,
             &Settings {
