@@ -115,7 +115,7 @@ impl Prim {
     }
 
     /// The distance of the nearest intersection with `t` in (t_min, t_max), without the
-    /// surface details (the BVH keeps its primitives packed and calls [`Packed::hit_t`]).
+    /// surface details (the BVH tests its primitives in their packed form directly).
     pub fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
         Packed::new(self).hit_t(o, d, t_min, t_max)
     }
