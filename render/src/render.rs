@@ -84,11 +84,7 @@ pub fn render_progressive(
     cps.dedup();
     let max = *cps.last().unwrap_or(&s.spp);
     let kernel = kernel_for(scene, s);
-    let sampler = if kernel.emitter_wavelengths {
-        LambdaSampler::for_emitters(&scene.emitter_spectra())
-    } else {
-        LambdaSampler::Visible
-    };
+    let sampler = LambdaSampler::for_emitters(&scene.emitter_spectra());
     let y_norm = temc_color::cie::cmf_integral(360.0, 830.0)[1];
     let camera = scene.camera.pinhole(s.width, s.height);
     let done = AtomicUsize::new(0);

@@ -109,8 +109,8 @@ pub(super) fn sample_light(
     let (wi, dist, area_pdf_to_solid, facing) = match scene.prims[li] {
         Prim::Sphere { c, r } => {
             let (wi, pdf) = sample_sphere_cone(x, c, r, u1, u2)?;
-            let h = scene.prims[li].intersect(x, wi, 0.0, f32::INFINITY)?;
-            (wi, h.t, pdf, true) // seen from outside: the front
+            let t = scene.prims[li].hit_t(x, wi, 0.0, f32::INFINITY)?;
+            (wi, t, pdf, true) // seen from outside: the front
         }
         Prim::Quad { p, e1, e2 } => flat_sample(x, p + e1 * u1 + e2 * u2, e1, e2, 1.0)?,
         Prim::Triangle { p0, e1, e2 } => {

@@ -34,8 +34,6 @@ pub struct Kernel {
     pub dispersion: bool,
     /// Refraction code present.
     pub transmission: bool,
-    /// Sample wavelengths from the emitters' spectra (needed for line spectra).
-    pub emitter_wavelengths: bool,
 }
 
 impl Kernel {
@@ -45,7 +43,6 @@ impl Kernel {
         split_always: false,
         dispersion: true,
         transmission: true,
-        emitter_wavelengths: true,
     };
 
     /// [`Kernel::GENERAL`] with one wavelength per path from the first vertex: the naive
@@ -55,8 +52,8 @@ impl Kernel {
         ..Kernel::GENERAL
     };
 
-    /// The cheapest correct kernel for a scene with these features. Wavelengths are
-    /// always sampled from the emitters' spectra: on smooth emitters too that beat the
+    /// The cheapest correct kernel for a scene with these features. Every kernel samples
+    /// wavelengths from the emitters' spectra: on smooth emitters too that beat the
     /// analytic visible density at the same speed (`temc-render bench`, 2026-12-02: the
     /// visible density needed up to 1.3x the time to equal error on the blackbody and D65
     /// scenes, 3.4x in the furnace), so only the code paths are specialised.
@@ -65,7 +62,6 @@ impl Kernel {
             split_always: false,
             dispersion: f.dispersion,
             transmission: f.transmission,
-            emitter_wavelengths: true,
         }
     }
 }

@@ -1,5 +1,5 @@
-//! How a render picks its wavelengths: the visible-importance density for smooth
-//! emitters, or a table built from the emitters' spectra so line spectra get samples.
+//! How a render picks its wavelengths: a table built from the visible-importance density
+//! and the emitters' spectra, so line spectra get samples and smooth ones lose nothing.
 
 use crate::spectral::spectrum::Spectrum;
 use crate::spectral::wavelengths::{visible_pdf, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, LANES};
@@ -7,8 +7,6 @@ use crate::spectral::wavelengths::{visible_pdf, Wavelengths, LAMBDA_MAX, LAMBDA_
 /// How a render picks its wavelengths.
 #[derive(Clone, Debug)]
 pub enum LambdaSampler {
-    /// The visible-importance density: right for smooth emitters.
-    Visible,
     /// A tabulated density, half visible-importance and half the emitters' spectra
     /// weighted by the colour matching functions: spiky lamps and lasers then get samples
     /// on their lines. Piecewise constant over `BIN` nm bins.
@@ -74,7 +72,6 @@ impl LambdaSampler {
     /// Four stratified wavelengths from one uniform number.
     pub fn sample(&self, u: f32) -> Wavelengths {
         match self {
-            LambdaSampler::Visible => Wavelengths::sample(u),
             LambdaSampler::Table { pdf, cdf, guide } => {
                 let mut wl = Wavelengths {
                     lambda: [0.0; LANES],
@@ -106,9 +103,7 @@ mod tests {
     fn tabulated_sampler_integrates_spiky_spectra() {
         let lamp = Spectrum::fluorescent();
         let sampler = LambdaSampler::for_emitters(&[&lamp]);
-        let LambdaSampler::Table { pdf, cdf, .. } = &sampler else {
-            unreachable!()
-        };
+        let LambdaSampler::Table { pdf, cdf, .. } = &sampler;
         assert!((pdf.iter().sum::<f32>() * BIN - 1.0).abs() < 1e-3);
         // Estimate the integral of ybar * lamp both ways; the table's estimate must agree
         // with a fine quadrature.

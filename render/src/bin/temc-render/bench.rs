@@ -325,18 +325,13 @@ fn specialisation(md: &mut String, a: &Args, cancel: &AtomicBool) -> Result<(), 
 /// A kernel in the report's words.
 fn describe(k: Kernel) -> String {
     format!(
-        "{}{}{}",
+        "{}{}, emitter λ sampling",
         if k.dispersion {
             "split at dispersion"
         } else {
             "4 wavelengths"
         },
-        if k.transmission { ", refraction" } else { "" },
-        if k.emitter_wavelengths {
-            ", emitter λ sampling"
-        } else {
-            ""
-        }
+        if k.transmission { ", refraction" } else { "" }
     )
 }
 
