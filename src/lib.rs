@@ -44,6 +44,7 @@ mod error;
 pub mod filter;
 pub mod image;
 pub mod io;
+pub mod keep_mean;
 pub mod prefilter;
 /// Applies the network's per-pixel multi-level filters to linear radiance (docs/reconstruction.md).
 pub mod reconstruct;

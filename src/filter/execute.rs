@@ -1,8 +1,9 @@
 //! One execution, in named stages: [`validate`] the images, [`snapshot`] inputs that share
 //! bytes with the output, compute the [`image_statistics`] once, [`plan`] the tiles, then per
 //! tile (in parallel) [`pack_tile`], run the network, [`reconstruct`](crate::reconstruct)
-//! the tile's core from the predicted filters and the noisy linear radiance; finally
-//! [`write_output`], only when every tile has succeeded.
+//! the tile's core from the predicted filters and the noisy linear radiance; then
+//! [`keep_mean`](crate::keep_mean) on the whole image; finally [`write_output`], only when
+//! every tile has succeeded.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -13,9 +14,9 @@ use super::{ExecuteStats, ImageName, Monitor, RawImage};
 use crate::color::{self, features, Exposure};
 use crate::engine::{Model, ModelInfo, NetInput};
 use crate::image::{read3, Layout};
-use crate::reconstruct;
 use crate::tile::{Tile, TilePlan};
 use crate::Error;
+use crate::{keep_mean, reconstruct};
 
 pub(super) struct Job<'m> {
     pub model: &'m Arc<Model>,
@@ -275,14 +276,12 @@ fn pack_tile(
             (buffer, *channels, first - channels)
         })
         .collect();
-    let ldr = |c: [f32; 3]| c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) });
     for wy in 0..win.h {
         let y = reflect(win.y + wy, h);
         for wx in 0..win.w {
             let x = reflect(win.x + wx, w);
             let i = wy * win.w + wx;
-            let c = src.color.px(x, y);
-            let c = color::sanitize_rgb(if hdr { c } else { ldr(c) });
+            let c = radiance(src.color.px(x, y), hdr);
             let e = color::encode(c, stats.exposure);
             p.chroma[i] = e.hsv[0];
             p.chroma[n + i] = e.hsv[1];
@@ -320,6 +319,13 @@ fn pack_tile(
         }
     }
     p
+}
+
+/// The noisy linear radiance the reconstruction filters: sanitised, and in LDR mode first
+/// clamped to [0, 1] (NaN to 0).
+fn radiance(c: [f32; 3], hdr: bool) -> [f32; 3] {
+    let ldr = |c: [f32; 3]| c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) });
+    color::sanitize_rgb(if hdr { c } else { ldr(c) })
 }
 
 /// The aux buffers a model's layout can name (engine::AUX_BUFFERS).
@@ -433,6 +439,9 @@ pub(super) fn run(
     if stop.load(Ordering::SeqCst) {
         return Err(Error::Cancelled);
     }
+    let limit = if job.hdr { color::LINEAR_MAX } else { 1.0 };
+    let input = || src.color.pixels().map(|c| radiance(c, job.hdr));
+    keep_mean::stage(&mut staged, input, (w, h), limit);
 
     let stats = ExecuteStats {
         tiles: n_tiles,

@@ -83,8 +83,13 @@ def delta_e_itp(x, r):
 
 
 def mean_ratio(x, r):
-    """The image's mean over the reference's: a denoiser must keep it (1.0)."""
-    return float(np.mean(x, dtype=np.float64) / max(np.mean(r, dtype=np.float64), 1e-30))
+    """The image's mean over the reference's: a denoiser must keep it (1.0). Both are taken
+    in the space every output lives in (color.sanitize_rgb: out-of-gamut colours mapped to
+    non-negative at equal luminance, values capped at LINEAR_MAX), so the ratio measures what
+    the denoiser did, not the contract's gamut map: a 532 nm laser's negative red is +17 %
+    red after the map, and an emitter above LINEAR_MAX loses 31 % of one scene's raw mean."""
+    xs, rs = color.sanitize_rgb(x), color.sanitize_rgb(r)
+    return float(np.mean(xs, dtype=np.float64) / max(np.mean(rs, dtype=np.float64), 1e-30))
 
 
 METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim_pq,

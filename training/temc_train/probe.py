@@ -24,11 +24,12 @@ from .export import load_checkpoint, recon_of
 from .reconstruct import denoise_image
 
 
-def denoise(model, recon, scene, s):
-    """The whole noisy image `s` of `scene`, denoised as the core would (full aux)."""
+def denoise(model, recon, scene, s, keep=True):
+    """The whole noisy image `s` of `scene`, denoised as the core would (full aux; `keep`:
+    the keep-mean stage)."""
     a = scene.a
     aux = np.moveaxis(color.aux_channels(a["albedo"][s], a["normal"][s], a["depth"][s]), 0, -1)
-    return denoise_image(model, recon, a["color"][s], aux, scene.scale[s])
+    return denoise_image(model, recon, a["color"][s], aux, scene.scale[s], keep)
 
 
 def evaluate_run(model, recon, scenes):

@@ -11,6 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from . import color
+from .keep_mean import stage as keep_mean_stage
 
 LINEAR_MAX = 65504.0
 LUMA = (0.2126, 0.7152, 0.0722)
@@ -122,11 +123,12 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
 
 
 @torch.no_grad()
-def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale: float) -> np.ndarray:
+def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale: float,
+                  keep: bool = True) -> np.ndarray:
     """A whole image as the core denoises it: `noisy` linear [H, W, 3], `aux` the network's
     aux planes [H, W, 7] (color.aux_channels, moved last), `scale` the input scale; the
-    image is mirror-padded to the alignment (32) and the result cropped back. Returns
-    [H, W, 3] linear."""
+    image is mirror-padded to the alignment (32) and the result cropped back, then (with
+    `keep`, as the core does) rescaled by the keep-mean stage. Returns [H, W, 3] linear."""
     hsv, _ = color.encode(noisy, scale)
     h, w = noisy.shape[:2]
     pad = ((0, (-h) % 32), (0, (-w) % 32), (0, 0))
@@ -135,8 +137,9 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
         return torch.from_numpy(np.moveaxis(np.pad(x, pad, mode="reflect"), -1, 0)[None].copy())
 
     hsv_t, aux_t = planes(hsv), planes(aux.astype(np.float32))
-    rgb = planes(color.sanitize_rgb(noisy).astype(np.float32))
+    radiance = color.sanitize_rgb(noisy).astype(np.float32)
     filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
-    out = reconstruct(rgb, aux_t[:, :3], filters, recon["kernel"], recon["demodulate"], recon["eps"],
-                      guide=recon.get("guide", False))
-    return np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
+    out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"], recon["demodulate"],
+                      recon["eps"], guide=recon.get("guide", False))
+    out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
+    return keep_mean_stage(out, radiance) if keep else out

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from temc_train import color
 from temc_train import evaluate as ev
 
 with warnings.catch_warnings():
@@ -73,6 +74,16 @@ def test_mean_ratio_is_the_ratio_of_means():
     x, r = images()
     assert ev.mean_ratio(x, r) == pytest.approx(x.astype(np.float64).mean() / r.astype(np.float64).mean())
     assert ev.mean_ratio(r, r) == 1.0
+
+
+def test_mean_ratio_is_taken_in_the_output_space():
+    # An out-of-gamut reference (negative red at positive luminance) and one above the
+    # ceiling: the ratio compares what every output is mapped to, so the reference's own
+    # gamut map gives 1.
+    r = np.array([[[-0.2, 1.0, 0.1], [7e4, 7e4, 7e4]]], np.float32)
+    assert ev.mean_ratio(color.sanitize_rgb(r), r) == pytest.approx(1.0)
+    raw = r.astype(np.float64).mean()
+    assert abs(color.sanitize_rgb(r).astype(np.float64).mean() / raw - 1) > 0.05
 
 
 def test_psnr_pq_is_that_of_the_pq_encoded_images():

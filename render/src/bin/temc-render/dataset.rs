@@ -50,6 +50,11 @@ pub struct Args {
     /// Leave out the named stress scenes (otherwise rendered into the test split).
     #[arg(long)]
     no_named: bool,
+    /// Render the generated scenes from this index on (wrapping round to 0): sessions on
+    /// fresh machines that each render a part of the set then cover different scenes. The
+    /// set, its scenes and their splits do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    start: usize,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -65,6 +70,7 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         seed: a.seed,
         named: !a.no_named,
         ref_prefix_spp: a.ref_prefix_spp,
+        start: a.start,
     };
     let (size, out) = (a.size, a.out);
     let t = Instant::now();
@@ -117,6 +123,10 @@ pub struct Options {
     /// training at a fraction of the reference's cost. Empty in data sets made before.
     #[serde(default)]
     pub ref_prefix_spp: Vec<u32>,
+    /// Order of work only: the generated scenes are rendered from this index on, wrapping.
+    /// Not recorded (a resumed set may start elsewhere).
+    #[serde(skip)]
+    pub start: usize,
 }
 
 /// One finished scene.
@@ -220,6 +230,7 @@ fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", settings_path.display()))?;
         let same = Options {
             count: old.count,
+            start: old.start,
             ..opts.clone()
         } == old;
         if !same {
@@ -236,7 +247,8 @@ fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
 }
 
 /// The scenes to render, in order: (name, split, scene text). The named stress scenes
-/// come first, so the test split's hard cases are ready early.
+/// come first, so the test split's hard cases are ready early; then the generated ones from
+/// index `start`, wrapping.
 fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
     let mut jobs = Vec::new();
     if opts.named {
@@ -246,7 +258,12 @@ fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
             }
         }
     }
-    for i in 0..opts.count {
+    let start = if opts.count > 0 {
+        opts.start % opts.count
+    } else {
+        0
+    };
+    for i in (start..opts.count).chain(0..start) {
         let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
         jobs.push((
             format!("scene-{i:05}"),
@@ -369,6 +386,26 @@ fn write_manifest(opts: &Options, out: &Path, records: &[Record]) -> Result<Mani
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn start_rotates_the_order_not_the_set() {
+        let opts = |start| Options {
+            count: 7,
+            size: 8,
+            spp: vec![1],
+            ref_spp: 2,
+            seed: 3,
+            named: false,
+            ref_prefix_spp: vec![],
+            start,
+        };
+        let (a, b) = (jobs(&opts(0)), jobs(&opts(12)));
+        assert_eq!(b[0].0, "scene-00005");
+        assert_eq!(b[2].0, "scene-00000");
+        let mut sorted = b.clone();
+        sorted.sort();
+        assert_eq!(sorted, a);
+    }
 
     #[test]
     fn splits_are_roughly_80_10_10() {

@@ -1,0 +1,123 @@
+"""The keep-mean stage: after the reconstruction, each block of the output is scaled back to
+the noisy input's mean (docs/keep-mean.md). src/keep_mean.rs is the same function in Rust;
+tests/data/keep_mean_vectors.json (written by `python -m temc_train.keep_mean` from training/)
+pins the two.
+
+The reconstruction's weights sum to one per *output* pixel, so nothing bounds how much a
+bright pixel gives away (a laser line copied into its neighbours) or keeps (a firefly the
+filter drops): the image's mean drifts. The noisy input's mean over a block is unbiased, so
+the ratio of the input's and the output's block sums, interpolated smoothly between block
+centres and clamped, restores it without moving detail.
+"""
+
+import json
+import pathlib
+
+import numpy as np
+
+from .color import LINEAR_MAX
+
+# The core's stage (src/keep_mean.rs), measured in docs/keep-mean-measured.md: blocks of
+# BLOCK pixels with factors in [1 / CLAMP, CLAMP], then the whole image with factors in
+# [1 / GLOBAL_CLAMP, GLOBAL_CLAMP].
+BLOCK = 64
+CLAMP = 4.0
+GLOBAL_CLAMP = 16.0
+
+
+def block_sums(x: np.ndarray, block: int) -> np.ndarray:
+    """[H, W, C] -> [ceil(H / block), ceil(W / block), C] float64 sums (edge blocks partial)."""
+    h, w, c = x.shape
+    gh, gw = -(-h // block), -(-w // block)
+    pad = np.zeros((gh * block, gw * block, c))
+    pad[:h, :w] = x
+    return pad.reshape(gh, block, gw, block, c).sum((1, 3))
+
+
+def ratios(noisy: np.ndarray, out: np.ndarray, block: int, clamp: float) -> np.ndarray:
+    """Per block and channel: input sum / output sum, 1 where the output block is black,
+    clamped to [1 / clamp, clamp]."""
+    si, so = block_sums(noisy, block), block_sums(out, block)
+    r = np.where(so > 0, si / np.where(so > 0, so, 1.0), 1.0)
+    return np.clip(r, 1.0 / clamp, clamp)
+
+
+def _axis(n: int, g: int, block: int):
+    """Bilinear taps along one axis: pixel i sits at grid coordinate (i + 0.5) / block - 0.5,
+    clamped to the outermost block centres."""
+    t = np.clip((np.arange(n) + 0.5) / block - 0.5, 0.0, g - 1)
+    i0 = np.floor(t).astype(int)
+    i1 = np.minimum(i0 + 1, g - 1)
+    return i0, i1, t - i0
+
+
+def interpolate(r: np.ndarray, h: int, w: int, block: int) -> np.ndarray:
+    """The [gh, gw, C] block factors, bilinear between block centres, at every pixel."""
+    gh, gw = r.shape[:2]
+    y0, y1, fy = _axis(h, gh, block)
+    x0, x1, fx = _axis(w, gw, block)
+    fy, fx = fy[:, None, None], fx[None, :, None]
+    top = r[y0][:, x0] * (1 - fx) + r[y0][:, x1] * fx
+    bottom = r[y1][:, x0] * (1 - fx) + r[y1][:, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def keep_mean(out: np.ndarray, noisy: np.ndarray, block: int = BLOCK, clamp: float = CLAMP,
+              ldr: bool = False) -> np.ndarray:
+    """`out` [H, W, 3] rescaled so each block's mean follows `noisy` (the sanitised input the
+    reconstruction filtered); block 0 means one block for the whole image. Result finite,
+    in [0, LINEAR_MAX] (LDR: [0, 1])."""
+    return np.clip(out * factors(out, noisy, block, clamp), 0.0,
+                   1.0 if ldr else LINEAR_MAX).astype(np.float32)
+
+
+def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False) -> np.ndarray:
+    """The core's keep-mean stage: keep_mean over BLOCK-pixel blocks (local energy), then
+    over the whole image (what the block clamp left)."""
+    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr)
+    return keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr)
+
+
+def factors(out: np.ndarray, noisy: np.ndarray, block: int, clamp: float) -> np.ndarray:
+    """The float64 [H, W, 3] factors keep_mean multiplies `out` by."""
+    h, w = out.shape[:2]
+    b = block if block > 0 else max(h, w)
+    return interpolate(ratios(noisy, out, b, clamp), h, w, b)
+
+
+VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "keep_mean_vectors.json"
+
+
+def vector_cases():
+    """Sizes, block sizes (global included), LDR, black and firefly blocks; values are short
+    decimals both sides read exactly as float32."""
+    rng = np.random.default_rng(15)
+    out = []
+    for name, h, w, block, clamp, ldr in [("random_23x37_b8", 23, 37, 8, 4.0, False),
+                                          ("global_9x13", 9, 13, 0, 4.0, False),
+                                          ("ldr_16x16_b4", 16, 16, 4, 2.0, True),
+                                          ("one_pixel", 1, 1, 32, 4.0, False),
+                                          ("hard_20x12_b5", 20, 12, 5, 4.0, False),
+                                          ("stage_70x20", 20, 70, "stage", 0.0, False)]:
+        noisy = np.round(2.0 * rng.random((h, w, 3)) ** 2, 4)
+        den = np.round(noisy * rng.uniform(0.5, 1.5, (h, w, 3)), 4)
+        if ldr:
+            noisy, den = noisy.clip(0, 1), den.clip(0, 1)
+        if name.startswith("hard"):
+            den[:5, :5] = 0.0          # a black output block
+            noisy[12, 3] = [900.0, 40.0, 0.0]  # a firefly the filter dropped
+            noisy[15:, 7:] = 0.0       # black input under a lit output
+        if block == "stage":  # the core's two passes (a dim output: the global pass acts)
+            den = np.round(0.1 * den, 4)
+            want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)
+        else:
+            want = np.clip(den * factors(den, noisy, block, clamp), 0.0, 1.0 if ldr else LINEAR_MAX)
+        out.append(dict(name=name, w=w, h=h, block=block, clamp=clamp, ldr=ldr,
+                        input=noisy.ravel().tolist(), output=den.ravel().tolist(),
+                        want=[float(f"{v:.9g}") for v in want.ravel()]))
+    return out
+
+
+if __name__ == "__main__":
+    VECTORS.write_text(json.dumps(vector_cases()) + "\n")
+    print(f"wrote {VECTORS}")

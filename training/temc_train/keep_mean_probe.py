@@ -1,0 +1,113 @@
+"""Measures the keep-mean stage's settings on one trained model (docs/keep-mean.md).
+
+    python -m temc_train.keep_mean_probe --data ../data/spectral-v2 \\
+        --checkpoint runs/temc2-w0.125-single/checkpoint.pt --out ../docs/keep-mean-measured.md
+
+Every validation and test image is denoised once through the network and reconstruct.py
+(the core's function), then each variant below rescales that output; per spp: geometric-mean
+RelMSE, mean Delta E ITP, the worst |mean / reference mean - 1| and how many scenes are within
+1 % of the reference's mean (both in the output space: evaluate.mean_ratio). The noisy
+input's own mean is the row to beat: no correction that follows the input can be closer to
+the reference than the input is.
+"""
+
+import argparse
+import math
+
+import numpy as np
+import torch
+
+from . import color, data, evaluate
+from .export import load_checkpoint, recon_of
+from .keep_mean import interpolate, keep_mean, ratios, stage
+from .probe import denoise
+
+
+def _luma_variant(block, clamp):
+    """One factor per block from luminance, applied to all three channels (keeps hue)."""
+    def apply(out, noisy):
+        h, w = out.shape[:2]
+        b = block if block > 0 else max(h, w)
+        lum = lambda x: (x * color.LUMA).sum(-1, keepdims=True)
+        f = interpolate(ratios(lum(noisy), lum(out), b, clamp), h, w, b)
+        return np.clip(out * f, 0.0, color.LINEAR_MAX)
+    return apply
+
+
+VARIANTS = {
+    "none": lambda out, noisy: out,
+    "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0),
+    "global, luminance": _luma_variant(0, 4.0),
+    "blocks of 16, clamp 4": lambda out, noisy: keep_mean(out, noisy, 16, 4.0),
+    "blocks of 32, clamp 4": lambda out, noisy: keep_mean(out, noisy, 32, 4.0),
+    "blocks of 32, clamp 2": lambda out, noisy: keep_mean(out, noisy, 32, 2.0),
+    "blocks of 32, clamp 16": lambda out, noisy: keep_mean(out, noisy, 32, 16.0),
+    "global, per channel, clamp 16": lambda out, noisy: keep_mean(out, noisy, 0, 16.0),
+    "blocks of 32, clamp 4, then global clamp 16":
+        lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0), noisy, 0, 16.0),
+    "the core's stage: blocks of 64, clamp 4, then global clamp 16": stage,
+    "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0),
+    "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
+}
+
+
+def row(res):
+    rel = math.exp(np.mean([math.log(max(r[0], 1e-12)) for r in res]))
+    de = float(np.mean([r[1] for r in res]))
+    worst = max(abs(r[2] - 1) for r in res)
+    within = sum(abs(r[2] - 1) <= 0.01 for r in res)
+    return f"{rel:.4f} | {de:.2f} | {100 * worst:.1f} % | {within}/{len(res)}"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--checkpoint", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--threads", type=int, default=2)
+    a = ap.parse_args(argv)
+    torch.set_num_threads(a.threads)
+    scenes = data.load_split(a.data, "val") + data.load_split(a.data, "test")
+    model, *_ = load_checkpoint(a.checkpoint)
+    recon = recon_of(model)
+    res = {}  # {(variant, spp): [(relmse, dE, mean ratio)]}
+    worst = {}  # {(variant, spp): (|ratio - 1|, scene)}
+    for sc in scenes:
+        ref = sc.a["reference"]
+        for s, spp in enumerate(sc.spp):
+            noisy = color.sanitize_rgb(sc.a["color"][s])
+            out = denoise(model, recon, sc, s, keep=False)
+            for name, f in [("noisy input", lambda o, n: n)] + list(VARIANTS.items()):
+                x = f(out, noisy)
+                m = evaluate.mean_ratio(x, ref)
+                res.setdefault((name, spp), []).append((evaluate.relmse(x, ref), evaluate.delta_e_itp(x, ref), m))
+                worst[(name, spp)] = max(worst.get((name, spp), (0, "")), (abs(m - 1), sc.name))
+        print(f"probed {sc.name}", flush=True)
+    spps = sorted({spp for _, spp in res})
+    lines = [
+        "# The keep-mean stage, measured",
+        "",
+        "Regenerate: `cd training && python -m temc_train.keep_mean_probe --data ../data/spectral-v2 "
+        f"--checkpoint {a.checkpoint} --out ../docs/keep-mean-measured.md`.",
+        f"{len(scenes)} whole images of the validation and test splits, full aux, denoised once by the",
+        "checkpoint above through reconstruct.py; each variant then rescales that output. Per spp:",
+        "geometric-mean RelMSE | mean Delta E ITP | worst |mean / reference mean - 1| (scene) |",
+        "scenes within 1 % of the reference's mean (both means in the output space: gamut-mapped",
+        "and capped at LINEAR_MAX, evaluate.mean_ratio). The validation and test scenes are",
+        "those this machine had rendered (named stress scenes, then generated ones from",
+        "`--start`), so they change from session to session.",
+        "",
+    ]
+    for spp in spps:
+        lines += [f"## {spp} spp", "", "| variant | RelMSE | dE ITP | worst mean | within 1 % | worst scene |",
+                  "| --- | ---: | ---: | ---: | ---: | --- |"]
+        for name in ["noisy input"] + list(VARIANTS):
+            lines.append(f"| {name} | {row(res[(name, spp)])} | {worst[(name, spp)][1]} |")
+        lines.append("")
+    with open(a.out, "w") as f:
+        f.write("\n".join(lines))
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

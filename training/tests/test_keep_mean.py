@@ -1,0 +1,64 @@
+"""The keep-mean stage: the committed vectors (which Rust checks too) are what keep_mean.py
+computes now, and the properties the core relies on: means come back, factors are clamped,
+black stays black, nothing non-finite leaves."""
+
+import json
+
+import numpy as np
+
+from temc_train import keep_mean as km
+
+
+def test_vectors_are_current():
+    """Regenerate with `python -m temc_train.keep_mean` when the stage changes."""
+    want = json.loads(km.VECTORS.read_text())
+    got = km.vector_cases()
+    assert [c["name"] for c in got] == [c["name"] for c in want]
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g["want"], w["want"], rtol=1e-7, atol=1e-9)
+        # keep_mean itself (float32 out) within the tolerance Rust is held to
+        shape = (g["h"], g["w"], 3)
+        den, noisy = np.reshape(g["output"], shape), np.reshape(g["input"], shape)
+        out = (km.stage(den, noisy) if g["block"] == "stage"
+               else km.keep_mean(den, noisy, g["block"], g["clamp"], g["ldr"]))
+        np.testing.assert_allclose(out.ravel(), w["want"], rtol=1e-5, atol=1e-5)
+
+
+def test_the_stage_keeps_the_image_mean_past_the_block_clamp():
+    """A block whose output is 10x too dark: the block pass stops at 4x, the global pass
+    brings the image's mean back (the dark room of docs/keep-mean-measured.md)."""
+    rng = np.random.default_rng(3)
+    noisy = (rng.random((130, 200, 3)) ** 3).astype(np.float32)
+    out = km.stage(0.1 * noisy, noisy)
+    np.testing.assert_allclose(out.mean((0, 1)), noisy.mean((0, 1)), rtol=1e-5)
+    one_pass = km.keep_mean(0.1 * noisy, noisy, km.BLOCK, km.CLAMP)
+    assert np.all(one_pass.mean((0, 1)) < 0.5 * noisy.mean((0, 1)))
+
+
+def test_block_means_follow_the_input():
+    rng = np.random.default_rng(1)
+    noisy = (2 * rng.random((96, 64, 3)) ** 4).astype(np.float32)
+    darker = noisy * 0.7
+    out = km.keep_mean(darker, noisy, 32, 4.0)
+    np.testing.assert_allclose(km.block_sums(out, 32), km.block_sums(noisy, 32), rtol=1e-5)
+
+
+def test_heavy_tailed_flat_colour_keeps_its_mean():
+    """A filter that drops the outliers (here: the median) darkens; the stage undoes it."""
+    rng = np.random.default_rng(2)
+    base = np.array([0.8, 0.1, 0.05])
+    noisy = (2 * base * rng.random((110, 150, 3)) ** 2).astype(np.float32)
+    med = np.broadcast_to(np.median(noisy, axis=(0, 1)), noisy.shape).astype(np.float32)
+    out = km.stage(med, noisy)
+    ratio = out.mean((0, 1)) / noisy.mean((0, 1))
+    assert np.all(np.abs(ratio - 1) < 0.01), ratio
+
+
+def test_clamp_black_and_non_finite():
+    noisy = np.full((8, 8, 3), 10.0, np.float32)
+    out = np.zeros((8, 8, 3), np.float32)
+    out[:, 4:] = 1.0
+    got = km.keep_mean(out, noisy, 4, 2.0)
+    assert np.all(got[:, :4] == 0) and np.all(got[:, 6:] == 2.0)
+    huge = km.keep_mean(np.full((4, 4, 3), 60000, np.float32), np.full((4, 4, 3), 65504, np.float32))
+    assert np.isfinite(huge).all() and huge.max() <= 65504
