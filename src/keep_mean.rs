@@ -81,6 +81,8 @@ pub fn keep_mean(
 ) {
     assert!(out.len() == w * h * 3 && w > 0 && h > 0 && clamp >= 1.0);
     let block = if block == 0 { w.max(h) } else { block };
+    // Every input pixel counts, a capped Inf too: the filters spread its value into its
+    // neighbours, so leaving it out of the input's sum would darken its block and the image.
     let (gw, gh, si) = block_sums(input, (w, h), block);
     let pixels = out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]);
     let (_, _, so) = block_sums(pixels, (w, h), block);

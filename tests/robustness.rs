@@ -197,8 +197,10 @@ fn nan_in_each_aux_buffer_is_harmless() {
 #[test]
 fn a_firefly_does_not_reach_beyond_the_receptive_field_and_reconstruction() {
     // OIDN issue #210: a single huge value blew up a whole image. With a fixed exposure,
-    // pixels farther from the firefly than the receptive field must be bit-identical to a
-    // run without it, and those near it finite.
+    // pixels farther from the firefly than the receptive field must match a run without it,
+    // and those near it be finite. Not bit for bit: the keep-mean stage's factors are block
+    // and image sums of the output, which the pixels near the firefly move a little
+    // (docs/keep-mean.md; measured 2026-12-03: 5e-5 relative at most).
     let arch = "ae";
     let info = temc::engine::Model::from_bytes(&model(arch))
         .unwrap()
@@ -222,11 +224,14 @@ fn a_firefly_does_not_reach_beyond_the_receptive_field_and_reconstruction() {
         for x in 0..w {
             if x.abs_diff(fx).max(y.abs_diff(fy)) > radius {
                 let i = 3 * (y * w + x);
-                assert_eq!(
-                    a[i..i + 3],
-                    b[i..i + 3],
-                    "pixel ({x}, {y}) felt the firefly"
-                );
+                for k in i..i + 3 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-3 * a[k].abs().max(1e-3),
+                        "pixel ({x}, {y}) felt the firefly: {} against {}",
+                        b[k],
+                        a[k]
+                    );
+                }
                 far += 1;
             }
         }

@@ -107,6 +107,7 @@ def vector_cases():
             den[:5, :5] = 0.0          # a black output block
             noisy[12, 3] = [900.0, 40.0, 0.0]  # a firefly the filter dropped
             noisy[15:, 7:] = 0.0       # black input under a lit output
+            noisy[2, 9] = [LINEAR_MAX, LINEAR_MAX, 3.0]  # an Inf the sanitiser capped
         if block == "stage":  # the core's two passes (a dim output: the global pass acts)
             den = np.round(0.1 * den, 4)
             want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)

@@ -160,6 +160,37 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
     return md + ["", "Bold: the bound is met.", ""]
 
 
+# The two kinds of held-out test scene: hand-written (another author's composition, lights
+# and materials) and the generator's own, on seeds it never trained on.
+FAMILIES = (("hand-written scenes (named-*: not made by the generator)", True),
+            ("generated scenes (held-out seeds of the training generator)", False))
+
+
+def family_section(m, denoisers, spps) -> list:
+    """The targets' ratios to OIDN high again, per kind of test scene: a model that has
+    learnt its generator rather than denoising wins on the second and not on the first."""
+    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
+    md = ["## Targets per kind of test scene", "",
+          "The same ratios to OIDN high on each kind of held-out scene alone: whole scenes of "
+          "another family (hand-written) and held-out seeds of the family trained on.", "",
+          "| model | scenes | n | spp | RelMSE / OIDN | dE ITP / OIDN | worst mean error |",
+          "|---|---|---:|---:|---:|---:|---:|"]
+    for label, named in FAMILIES:
+        sub = Means([r for r in m.rows if r["scene"].startswith("named-") == named])
+        n_scenes = len({r["scene"] for r in sub.rows})
+        if not n_scenes:
+            continue
+        for n in ours:
+            for spp, _, _ in TARGETS:
+                if spp not in spps:
+                    continue
+                r = sub.geomean(n, spp, "RelMSE") / sub.geomean("OIDN high", spp, "RelMSE")
+                d = sub.mean(n, spp, "dE-ITP") / sub.mean("OIDN high", spp, "dE-ITP")
+                worst = max((abs(v - 1) for v in sub.values(n, spp, "mean/ref")), default=float("nan"))
+                md.append(f"| {n} | {label} | {n_scenes} | {spp} | {r:.2f}x | {d:.2f}x | {100 * worst:.1f} % |")
+    return md + [""]
+
+
 class Means:
     """The report's averages over the test scenes of one denoiser at one spp."""
 
@@ -479,7 +510,7 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra):
     scenes = [r["name"] for r in tests]
     return (header(tests, manifest, threads, where)
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
-            + verdict_section(m, spps, labels) + per_scene_section(m, denoisers, spps, scenes)
+            + family_section(m, denoisers, spps) + verdict_section(m, spps, labels) + per_scene_section(m, denoisers, spps, scenes)
             + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps) + extra)
 
 

@@ -37,6 +37,13 @@ SHIPPED = {
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
 }
+# Tile overlaps the seam test raised above the measured reach's (file -> pixels, why): the
+# reach is measured on a mild image, and seams show on heavy-tailed noise first.
+MIN_OVERLAP = {
+    # 2026-12-03, 22,632 steps: reach 30 px -> 64 px overlap, but tiled and untiled differed by
+    # 2.3e-3 in PQ at 64 (tests/filter_api.rs, bound 1e-3) and by 3.7e-4 at 96.
+    "temc2-balanced": 96,
+}
 # What a card must say beyond its numbers.
 NOTES = {
     "temc2-high": "**Not yet better than balanced.** Three levels at width 0.25 learn slowest "
@@ -139,11 +146,14 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
                                             if ck.get("guide_from_step") else "") + ", ")
            if recon.get("guide") else "")
         + "applied by the core to the noisy linear radiance "
-        "(docs/reconstruction.md; models.py says why not the paper's sigmoid) |",
+        "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
+        "keep-mean stage (docs/keep-mean.md; not seen in training) |",
         f"| tile overlap | {overlap} px, from the measured effective reach of network + reconstruction "
-        "(an impulse's effect below 1e-4 of its size; receptive.effective_overlap) |",
-        f"| final validation loss | {float(log[-1]['val_loss']):.4f} (the validation crops grow with "
-        "the data set, so values from before the last growth are not comparable) |",
+        "(an impulse's effect below 1e-4 of its size; receptive.effective_overlap)"
+        + (", raised to pass the seam test (ship.MIN_OVERLAP)" if file in MIN_OVERLAP else "") + " |",
+        f"| final validation loss | {float(log[-1]['val_loss']):.4f} (the validation crops change with "
+        "the data set: it grows, and a fresh machine renders other scenes first (temc-render dataset "
+        "--start), so values from another session are not comparable) |",
         "| inputs | colour; colour + albedo; colour + albedo + normal + depth (one model, trained with random aux dropout) |",
         "",
     ]
@@ -251,7 +261,7 @@ def ship_one(a, file, run_name, mode, meas, data):
     model, arch, width, info = load_checkpoint(ckpt_path)
     ck = checkpoint_facts(ckpt_path, model, a.data)
     recon = recon_of(model)
-    overlap = receptive.effective_overlap(model, recon)
+    overlap = max(receptive.effective_overlap(model, recon), MIN_OVERLAP.get(file, 0))
     test_relmse = table(meas, label(arch, width)).get(16, {}).get("RelMSE") if meas else None
     desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "
             f"({ck['train_steps']} steps) on temc-render's {ck['dataset']}; a small CPU-trained "
