@@ -2,7 +2,7 @@
 //! the noisy input's mean over that block (docs/keep-mean.md).
 //!
 //! The reconstruction's weights sum to one per *output* pixel, so nothing bounds how much
-//! a bright pixel gives away (a laser line copied into its neighbours) or keeps (a firefly
+//! a bright pixel gives away (a thin bright line spread into its neighbours) or keeps (a firefly
 //! the filters drop), and the image's mean drifts. The noisy input's block mean is
 //! unbiased; the ratio of the input's and the output's block sums, per channel, clamped and
 //! interpolated bilinearly between block centres, restores it without moving detail. It
@@ -20,16 +20,28 @@ pub const GLOBAL_CLAMP: f64 = 16.0;
 
 /// The core's keep-mean stage: [`keep_mean`] over [`BLOCK`]-pixel blocks (energy stays
 /// near where it was rendered), then over the whole image (its mean follows the input's
-/// within [`GLOBAL_CLAMP`]). `input` yields the sanitised noisy radiance afresh for each
-/// pass; `max` is the output ceiling.
-pub fn stage<I: Iterator<Item = [f32; 3]>>(
+/// within [`GLOBAL_CLAMP`]). `input` is the sanitised noisy radiance, read once: the whole
+/// image's sum is the sum of its block sums. `max` is the output ceiling.
+pub fn stage(
     out: &mut [f32],
-    input: impl Fn() -> I,
-    size: (usize, usize),
+    input: impl Iterator<Item = [f32; 3]>,
+    (w, h): (usize, usize),
     max: f32,
 ) {
-    keep_mean(out, input(), size, BLOCK, CLAMP, max);
-    keep_mean(out, input(), size, 0, GLOBAL_CLAMP, max);
+    let blocks = block_sums(input, (w, h), BLOCK);
+    rescale(out, &blocks, (w, h), BLOCK, CLAMP, max);
+    let total = blocks
+        .2
+        .iter()
+        .fold([0f64; 3], |t, b| std::array::from_fn(|k| t[k] + b[k]));
+    rescale(
+        out,
+        &(1, 1, vec![total]),
+        (w, h),
+        w.max(h),
+        GLOBAL_CLAMP,
+        max,
+    );
 }
 
 /// Per-channel sums over `block` x `block` blocks of `w` x `h` interleaved RGB pixels, row by
@@ -79,11 +91,24 @@ pub fn keep_mean(
     clamp: f64,
     max: f32,
 ) {
-    assert!(out.len() == w * h * 3 && w > 0 && h > 0 && clamp >= 1.0);
     let block = if block == 0 { w.max(h) } else { block };
     // Every input pixel counts, a capped Inf too: the filters spread its value into its
     // neighbours, so leaving it out of the input's sum would darken its block and the image.
-    let (gw, gh, si) = block_sums(input, (w, h), block);
+    let sums = block_sums(input, (w, h), block);
+    rescale(out, &sums, (w, h), block, clamp, max);
+}
+
+/// [`keep_mean`] from the input's block sums `(gw, gh, si)` (of [`block_sums`] at `block`).
+fn rescale(
+    out: &mut [f32],
+    (gw, gh, si): &(usize, usize, Vec<[f64; 3]>),
+    (w, h): (usize, usize),
+    block: usize,
+    clamp: f64,
+    max: f32,
+) {
+    assert!(out.len() == w * h * 3 && w > 0 && h > 0 && clamp >= 1.0);
+    let (gw, gh) = (*gw, *gh);
     let pixels = out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]);
     let (_, _, so) = block_sums(pixels, (w, h), block);
     let ratio: Vec<[f64; 3]> = si
@@ -202,7 +227,7 @@ mod tests {
                     let clamp = c["clamp"].as_f64().unwrap();
                     keep_mean(&mut out, pixels(), (w, h), block as usize, clamp, max)
                 }
-                None => stage(&mut out, pixels, (w, h), max),
+                None => stage(&mut out, pixels(), (w, h), max),
             }
             for (i, (got, want)) in out.iter().zip(floats(&c["want"])).enumerate() {
                 let tol = 1e-5 * want.abs().max(1.0);

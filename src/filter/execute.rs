@@ -440,7 +440,7 @@ pub(super) fn run(
         return Err(Error::Cancelled);
     }
     let limit = if job.hdr { color::LINEAR_MAX } else { 1.0 };
-    let input = || src.color.pixels().map(|c| radiance(c, job.hdr));
+    let input = src.color.pixels().map(|c| radiance(c, job.hdr));
     keep_mean::stage(&mut staged, input, (w, h), limit);
 
     let stats = ExecuteStats {

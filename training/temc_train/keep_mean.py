@@ -4,7 +4,7 @@ tests/data/keep_mean_vectors.json (written by `python -m temc_train.keep_mean` f
 pins the two.
 
 The reconstruction's weights sum to one per *output* pixel, so nothing bounds how much a
-bright pixel gives away (a laser line copied into its neighbours) or keeps (a firefly the
+bright pixel gives away (a thin bright line spread into its neighbours) or keeps (a firefly the
 filter drops): the image's mean drifts. The noisy input's mean over a block is unbiased, so
 the ratio of the input's and the output's block sums, interpolated smoothly between block
 centres and clamped, restores it without moving detail.

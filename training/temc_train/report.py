@@ -134,6 +134,18 @@ TARGETS = ((4, 1.0, 1.0), (16, 0.8, 0.7), (64, 1.0, 1.0))
 MEAN_TOLERANCE = 0.01
 
 
+def vs_oidn(values, geomean, mean, n, spp):
+    """Model `n` at `spp` against OIDN high on the same images: (geometric-mean RelMSE ratio,
+    mean Delta E ITP ratio, worst |mean / reference mean - 1|)."""
+    r = geomean(n, spp, "RelMSE") / geomean("OIDN high", spp, "RelMSE")
+    d = mean(n, spp, "dE-ITP") / mean("OIDN high", spp, "dE-ITP")
+    return r, d, worst_mean_error(values, n, spp)
+
+
+def worst_mean_error(values, n, spp):
+    return max((abs(v - 1) for v in values(n, spp, "mean/ref")), default=float("nan"))
+
+
 def targets(denoisers, spps, values, geomean, mean) -> list:
     """The targets section: per temc model and spp, geometric-mean RelMSE and mean Delta E
     ITP as ratios to OIDN high's on the same images, against the bounds, and the worst
@@ -146,16 +158,15 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
           "the noisy input's worst is the render's own noise in the mean).", "",
           "| model | spp | RelMSE / OIDN | bound | dE ITP / OIDN | bound | worst mean error | noisy's worst | OIDN's worst |",
           "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    worst = lambda n, s: max((abs(v - 1) for v in values(n, s, "mean/ref")), default=float("nan"))  # noqa: E731
+    worst = lambda n, s: worst_mean_error(values, n, s)  # noqa: E731
     for n in ours:
         for spp, rb, db in TARGETS:
             if spp not in spps:
                 continue
-            r = geomean(n, spp, "RelMSE") / geomean("OIDN high", spp, "RelMSE")
-            d = mean(n, spp, "dE-ITP") / mean("OIDN high", spp, "dE-ITP")
+            r, d, w = vs_oidn(values, geomean, mean, n, spp)
             mark = lambda v, b: f"**{v:.2f}x**" if v <= b else f"{v:.2f}x"  # noqa: E731
             md.append(f"| {n} | {spp} | {mark(r, rb)} | {rb:g}x | {mark(d, db)} | {db:g}x | "
-                      f"{100 * worst(n, spp):.1f} % | {100 * worst('noisy', spp):.1f} % | "
+                      f"{100 * w:.1f} % | {100 * worst('noisy', spp):.1f} % | "
                       f"{100 * worst('OIDN high', spp):.1f} % |")
     return md + ["", "Bold: the bound is met.", ""]
 
@@ -184,9 +195,7 @@ def family_section(m, denoisers, spps) -> list:
             for spp, _, _ in TARGETS:
                 if spp not in spps:
                     continue
-                r = sub.geomean(n, spp, "RelMSE") / sub.geomean("OIDN high", spp, "RelMSE")
-                d = sub.mean(n, spp, "dE-ITP") / sub.mean("OIDN high", spp, "dE-ITP")
-                worst = max((abs(v - 1) for v in sub.values(n, spp, "mean/ref")), default=float("nan"))
+                r, d, worst = vs_oidn(sub.values, sub.geomean, sub.mean, n, spp)
                 md.append(f"| {n} | {label} | {n_scenes} | {spp} | {r:.2f}x | {d:.2f}x | {100 * worst:.1f} % |")
     return md + [""]
 
@@ -510,7 +519,8 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra):
     scenes = [r["name"] for r in tests]
     return (header(tests, manifest, threads, where)
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
-            + family_section(m, denoisers, spps) + verdict_section(m, spps, labels) + per_scene_section(m, denoisers, spps, scenes)
+            + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
+            + per_scene_section(m, denoisers, spps, scenes)
             + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps) + extra)
 
 

@@ -205,7 +205,8 @@ def test_report_sections_from_the_committed_measurements_match_the_docs():
     denoisers = list(dict.fromkeys(r["denoiser"] for r in rows))
     labels = [d for d in denoisers if d not in ("noisy", *report.OIDN)]
     body = (report.targets(denoisers, spps, m.values, m.geomean, m.mean)
-            + report.family_section(m, denoisers, spps) + report.verdict_section(m, spps, labels) + report.per_scene_section(m, denoisers, spps, scenes)
+            + report.family_section(m, denoisers, spps) + report.verdict_section(m, spps, labels)
+            + report.per_scene_section(m, denoisers, spps, scenes)
             + report.spp_tables(m, denoisers, spps) + report.error_vs_time_section(m, denoisers, spps))
     start = doc.index("## Targets (issue 15)")
     assert doc[start:start + len(body)] == body

@@ -258,11 +258,7 @@ fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
             }
         }
     }
-    let start = if opts.count > 0 {
-        opts.start % opts.count
-    } else {
-        0
-    };
+    let start = opts.start.checked_rem(opts.count).unwrap_or(0);
     for i in (start..opts.count).chain(0..start) {
         let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
         jobs.push((
