@@ -57,7 +57,7 @@ MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
 # The recipe of runs from before train.py stored it in the checkpoint (scripts/train-all).
 OLD_HPARAMS = {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
-               "rel_weight": 0.0, "target_spp": 0, "loss": "mix"}
+               "rel_weight": 0.0, "mean_weight": 0.0, "target_spp": 0, "loss": "mix"}
 
 
 def read_log(run):
@@ -138,7 +138,10 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
          if hp.get("loss", "mix") == "relmse" else
          f"| loss | the paper's L1 + MS-SSIM mix (alpha {hp['alpha']:g}), taken on PQ R'G'B' of the "
          "reconstructed linear output (loss.training_loss)"
-         + (f", plus {hp['rel_weight']:g} x relative L1" if hp["rel_weight"] else "") + " |"),
+         + (f", plus {hp['rel_weight']:g} x relative L1" if hp["rel_weight"] else "")
+         + (f", plus {hp['mean_weight']:g} x the block-mean energy term (loss.block_mean_error)"
+            + (f" from step {ck['mean_from_step']:,}" if ck.get("mean_from_step") else "")
+            if hp["mean_weight"] else "") + " |"),
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s) of {recon['kernel']}x{recon['kernel']} "
         f"{'luma and chroma kernels' if recon['split'] == 'both' else 'kernels (one for luma and chroma)'}, "
         f"demodulation {'on' if recon['demodulate'] else 'off'}, "
@@ -234,7 +237,7 @@ def checkpoint_facts(ckpt_path, model, data_root) -> dict:
             "params": count_params(model),
             "train_scenes": st.get("train_scenes", "an unrecorded number of"),
             "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
-            "guide_from_step": st.get("guide_from_step")}
+            "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step")}
 
 
 def write_goldens(model, path, gdir):

@@ -238,6 +238,8 @@ def train(a) -> dict:
             restore_optimizer_state(opt, ck["opt"])  # moves the moments to the parameters' device
         state = ck["state"]
         state.setdefault("gpu_seconds", 0.0)
+        if a.mean_weight and not state.get("hparams", {}).get("mean_weight"):
+            state["mean_from_step"] = state["step"]  # the card says when the term joined
         print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
               f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
         del ck
@@ -266,7 +268,7 @@ def train(a) -> dict:
         state["hparams"] = {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch,
                             "crop": a.crop, "threads": a.threads,
                             "alpha": a.alpha, "rel_weight": a.rel_weight,
-                            "target_spp": a.target_spp, "loss": a.loss}
+                            "mean_weight": a.mean_weight, "target_spp": a.target_spp, "loss": a.loss}
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
@@ -292,7 +294,7 @@ def train(a) -> dict:
               for v in arrays]
         out = denoise(model, xs, rs)
         loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
-                else training_loss(out, xs[5], a.alpha, a.rel_weight))
+                else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -369,6 +371,9 @@ def main(argv=None):
                     help="MS-SSIM weight of the mix loss (the paper's 0.84; 0 = L1 only)")
     ap.add_argument("--rel-weight", type=float, default=0.0,
                     help="weight of the relative L1 on linear values added to the mix loss")
+    ap.add_argument("--mean-weight", type=float, default=0.0,
+                    help="weight of the block-mean energy term (loss.block_mean_error) added to "
+                         "the mix loss")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "

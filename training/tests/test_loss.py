@@ -1,3 +1,4 @@
+import pytest
 import torch
 
 from temc_train.loss import mix_loss
@@ -107,3 +108,29 @@ def test_noise2noise_loss_trains_towards_the_targets_mean():
     pred = torch.full_like(targets, mean, requires_grad=True)
     noise2noise_loss(pred, targets).backward()
     assert abs(float(pred.grad.sum())) < 1e-6
+
+
+def test_block_mean_error_sees_dropped_samples_the_mix_loss_barely_sees():
+    """A filter that leaves out rare bright samples loses energy; the block-mean term counts
+    that loss in proportion, and ignores moving energy within a block."""
+    from temc_train.loss import block_mean_error, training_loss
+    torch.manual_seed(0)
+    target = torch.full((1, 3, 32, 32), 0.05)
+    target[..., ::8, ::8] = 3.0  # sparse bright samples carry most of the energy
+    dropped = torch.full_like(target, 0.05)
+    moved = target.roll(1, dims=-1)  # same block sums, different pixels
+    assert block_mean_error(target, target) == 0
+    assert block_mean_error(moved, target) < 0.05
+    drop = float(block_mean_error(dropped, target))
+    m = (252 * 0.05 + 4 * 3.0) / 256  # each 16x16 block: four bright samples
+    assert drop == pytest.approx((m - 0.05) / (m + 0.01), rel=1e-5)  # 0.43: half the energy gone
+    plain = float(training_loss(dropped, target))
+    assert float(training_loss(dropped, target, mean_weight=0.1)) == pytest.approx(plain + 0.1 * drop, rel=1e-5)
+    p = dropped.clone().requires_grad_()
+    block_mean_error(p, target).backward()
+    assert (p.grad < 0).all()  # every pixel is pushed brighter
+
+
+def test_block_mean_error_takes_images_smaller_than_a_block():
+    from temc_train.loss import block_mean_error
+    assert float(block_mean_error(torch.ones(1, 3, 5, 7), torch.ones(1, 3, 5, 7) * 2)) == pytest.approx(1 / 2.01, rel=1e-5)

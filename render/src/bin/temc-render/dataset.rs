@@ -194,18 +194,31 @@ pub fn run(
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     check_settings(opts, out)?;
     let jobs = jobs(opts);
+    // Every finished scene is in the manifest before the first new one renders: training
+    // reads the manifest while the set grows, and a resumed set must not look empty.
+    let done =
+        |(name, split, _): &(String, &str, String)| out.join(split).join(name).join("done.json");
+    let finished = |job| {
+        std::fs::read_to_string(done(job))
+            .ok()
+            .and_then(|t| serde_json::from_str::<Record>(&t).ok())
+    };
+    let mut todo = Vec::new();
     let mut records = Vec::new();
     for (k, job) in jobs.iter().enumerate() {
-        let (name, split, _) = job;
-        let done = out.join(split).join(name).join("done.json");
-        if let Ok(t) = std::fs::read_to_string(&done) {
-            if let Ok(r) = serde_json::from_str::<Record>(&t) {
-                records.push(r);
-                continue;
-            }
+        match finished(job) {
+            Some(r) => records.push(r),
+            None => todo.push(k),
         }
-        let r = render_scene(opts, out, job, progress, cancel)?;
-        write_bytes_atomic(&done, serde_json::to_string_pretty(&r).unwrap().as_bytes())?;
+    }
+    write_manifest(opts, out, &records)?;
+    for k in todo {
+        let (name, split, _) = &jobs[k];
+        let r = render_scene(opts, out, &jobs[k], progress, cancel)?;
+        write_bytes_atomic(
+            &done(&jobs[k]),
+            serde_json::to_string_pretty(&r).unwrap().as_bytes(),
+        )?;
         log(&format!(
             "{}/{}: {split}/{name}: noisy {:.1} s, reference {:.1} s",
             k + 1,
@@ -401,6 +414,40 @@ mod tests {
         let mut sorted = b.clone();
         sorted.sort();
         assert_eq!(sorted, a);
+    }
+
+    #[test]
+    fn a_resumed_set_lists_its_finished_scenes_before_rendering_more() {
+        let out = std::env::temp_dir().join(format!("temc-dataset-resume-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let opts = |count, start| Options {
+            count,
+            size: 8,
+            spp: vec![1],
+            ref_spp: 2,
+            seed: 3,
+            named: false,
+            ref_prefix_spp: vec![],
+            start,
+        };
+        let (quiet, none) = (|_: &str| {}, |_: usize| {});
+        run(&opts(2, 0), &out, &quiet, &none, &AtomicBool::new(false)).unwrap();
+        std::fs::remove_file(out.join("manifest.json")).unwrap();
+        // Grown by one scene, rendered first and cancelled at once: the two finished
+        // scenes must still be in the manifest (they come after the new one in order).
+        let err = run(&opts(3, 2), &out, &quiet, &none, &AtomicBool::new(true));
+        assert!(err.is_err());
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap())
+                .unwrap();
+        let names: Vec<_> = m["scenes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["name"].as_str().unwrap().to_string())
+            .collect();
+        assert_eq!(names, ["scene-00000", "scene-00001"]);
+        std::fs::remove_dir_all(&out).unwrap();
     }
 
     #[test]
