@@ -39,9 +39,8 @@ def evaluate_run(model, recon, scenes):
         for s, spp in enumerate(sc.spp):
             out = denoise(model, recon, sc, s)
             ref = sc.a["reference"]
-            ratio = float(out.mean() / max(ref.mean(), 1e-12))
-            res.setdefault(spp, []).append(
-                (evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref), ratio))
+            res.setdefault(spp, []).append((evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref),
+                                            evaluate.mean_ratio(out, ref)))
     return res
 
 
@@ -58,7 +57,7 @@ def evaluate_oidn(scenes):
             out, _ = evaluate.oidn_denoise(layers, "high", "full")
             ref = sc.a["reference"]
             res.setdefault(spp, []).append((evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref),
-                                            float(out.mean() / max(ref.mean(), 1e-12))))
+                                            evaluate.mean_ratio(out, ref)))
     return res
 
 

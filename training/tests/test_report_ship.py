@@ -87,7 +87,7 @@ def reported(dataset, tmp_path_factory):
     write_log(str(runs / "temc1-w0.125" / "log.csv"),
               [[0, 0.0, "", 0.5, "cpu"], [30, 180.0, 0.4, 0.25, "cpu"]])
     a = SimpleNamespace(data=dataset, out=str(out / "accuracy-vs-time.md"), runs=str(runs),
-                        threads=2, timing_size="64x32")
+                        threads=2, timing_size="64x32", generated=None)
     models_ = [(LABEL, fake_temc, lambda threads: 1.5 / threads)]
     report.report(a, models_, (LABEL, fake_temc), fake_oidn, fake_oidn_time, where="a test machine")
     md = open(a.out).read()
@@ -158,6 +158,17 @@ def test_verdict_counts_the_cases(reported):
     wins = sum(err[(LABEL, c, s)] < err[("noisy", c, s)] for c, s in cases)
     assert line(reported, f"- {LABEL}: lower RelMSE").startswith(
         f"- {LABEL}: lower RelMSE than the noisy input in {wins} of {len(cases)} (scene, spp) cases")
+
+
+def test_test_scenes_are_every_other_family_and_the_first_generated_seeds(tmp_path):
+    recs = [{"name": n, "split": sp} for sp, n in (
+        ("test", "scene-00031"), ("test", "named-prism"), ("test", "scene-00007"),
+        ("train", "scene-00001"), ("test", "holdout-window-000"), ("test", "scene-00019"))]
+    (tmp_path / "manifest.json").write_text(json.dumps({"scenes": recs}))
+    names = lambda n: [r["name"] for r in report.read_test_scenes(str(tmp_path), n)[1]]
+    assert names(2) == ["named-prism", "scene-00007", "holdout-window-000", "scene-00019"]
+    assert names(None) == ["scene-00031", "named-prism", "scene-00007", "holdout-window-000",
+                           "scene-00019"]
 
 
 def test_per_scene_tables(reported):

@@ -1,24 +1,25 @@
 //! Random scenes from a seed, for training diversity. The generator writes scene-file
 //! text (so every data-set scene can be read, edited and re-rendered) in two layouts: a
-//! closed room lit by ceiling panels, and an open floor under a sky with a lamp.
+//! closed room lit by ceiling panels, and an open floor under a sky with a lamp. The layouts
+//! it never trains on are in [`super::held_out`].
 
 use std::fmt::Write;
 
 use crate::rng::Rng;
 
-struct Gen(Rng);
+pub(super) struct Gen(pub(super) Rng);
 
 impl Gen {
-    fn u(&mut self) -> f32 {
+    pub(super) fn u(&mut self) -> f32 {
         self.0.uniform()
     }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+    pub(super) fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.u()
     }
-    fn pick<'a, T>(&mut self, v: &'a [T]) -> &'a T {
+    pub(super) fn pick<'a, T>(&mut self, v: &'a [T]) -> &'a T {
         &v[((self.u() * v.len() as f32) as usize).min(v.len() - 1)]
     }
-    fn chance(&mut self, p: f32) -> bool {
+    pub(super) fn chance(&mut self, p: f32) -> bool {
         self.u() < p
     }
     fn rgb(&mut self, lo: f32, hi: f32) -> String {
@@ -35,7 +36,7 @@ impl Gen {
             .collect();
         format!("{:.3} {:.3} {:.3}", c[0], c[1], c[2])
     }
-    fn texture(&mut self, lo: f32, hi: f32) -> String {
+    pub(super) fn texture(&mut self, lo: f32, hi: f32) -> String {
         let pattern = *self.pick(&["rgb", "rgb", "checker", "stripes", "noise", "fine"]);
         if pattern == "rgb" {
             return format!("rgb {}", self.rgb(lo, hi));
@@ -61,7 +62,7 @@ impl Gen {
         }
         format!("{:.3}", self.range(0.02, 0.45))
     }
-    fn spectrum(&mut self) -> String {
+    pub(super) fn spectrum(&mut self) -> String {
         match self.u() {
             x if x < 0.35 => format!("blackbody {:.0}", self.range(2200.0, 9000.0)),
             x if x < 0.55 => "d65".into(),
@@ -74,7 +75,7 @@ impl Gen {
             _ => format!("rgb {}", self.rgb(0.3, 1.0)),
         }
     }
-    fn material(&mut self, name: &str) -> String {
+    pub(super) fn material(&mut self, name: &str) -> String {
         match self.u() {
             x if x < 0.4 => format!(
                 "material {name} diffuse reflectance {}",
@@ -284,7 +285,7 @@ impl Gen {
     }
 
     /// Two to six objects with random materials in the middle of the floor.
-    fn objects(&mut self, s: &mut String, w: f32, d: f32) {
+    pub(super) fn objects(&mut self, s: &mut String, w: f32, d: f32) {
         let n = 2 + (self.u() * 5.0) as usize;
         for i in 0..n {
             let m = self.material(&format!("m{i}"));

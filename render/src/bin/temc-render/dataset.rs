@@ -13,6 +13,10 @@
 //! DIR/{train,val,test}/NAME/done.json    the scene's record (written last)
 //! ```
 //!
+//! Test scenes come in three kinds: `named-*` (the hand-written stress scenes), `holdout-*`
+//! (the held-out families of `description::held_out`, never in train or val) and the
+//! generator's `scene-*` on seeds of the test split.
+//!
 //! Noisy images at several spp come from one progressive render (each is a prefix of the
 //! next); the reference uses its own seed, so its noise is independent of theirs.
 
@@ -21,7 +25,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
-use temc_render::description::{format, generate, named};
+use temc_render::description::{format, generate, held_out, named};
 use temc_render::output::write_bytes_atomic;
 use temc_render::{render_progressive, Settings};
 
@@ -50,6 +54,10 @@ pub struct Args {
     /// Leave out the named stress scenes (otherwise rendered into the test split).
     #[arg(long)]
     no_named: bool,
+    /// Scenes per held-out family (`temc-render generate --family`), rendered into the test
+    /// split only as `holdout-FAMILY-NNN`: layouts and lighting no training scene has.
+    #[arg(long, default_value_t = 6)]
+    holdout: usize,
     /// Render the generated scenes from this index on (wrapping round to 0): sessions on
     /// fresh machines that each render a part of the set then cover different scenes. The
     /// set, its scenes and their splits do not depend on it.
@@ -69,6 +77,7 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         ref_spp: a.ref_spp,
         seed: a.seed,
         named: !a.no_named,
+        holdout: a.holdout,
         ref_prefix_spp: a.ref_prefix_spp,
         start: a.start,
     };
@@ -118,6 +127,10 @@ pub struct Options {
     pub seed: u64,
     /// Also render the named stress scenes into the test split.
     pub named: bool,
+    /// Scenes per held-out family, test split only. May grow on resume, like `count`; 0 in
+    /// data sets made before the families existed.
+    #[serde(default)]
+    pub holdout: usize,
     /// Sample counts at which a prefix of the reference render is also written
     /// (`ref-sppNNNN.exr`): noisy targets, independent of the inputs, for Noise2Noise
     /// training at a fraction of the reference's cost. Empty in data sets made before.
@@ -243,6 +256,7 @@ fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", settings_path.display()))?;
         let same = Options {
             count: old.count,
+            holdout: old.holdout,
             start: old.start,
             ..opts.clone()
         } == old;
@@ -260,8 +274,8 @@ fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
 }
 
 /// The scenes to render, in order: (name, split, scene text). The named stress scenes
-/// come first, so the test split's hard cases are ready early; then the generated ones from
-/// index `start`, wrapping.
+/// come first, so the test split's hard cases are ready early, then the held-out families'
+/// scenes; then the generated ones from index `start`, wrapping.
 fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
     let mut jobs = Vec::new();
     if opts.named {
@@ -269,6 +283,13 @@ fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
             if name != "furnace" {
                 jobs.push((format!("named-{name}"), "test", text.to_string()));
             }
+        }
+    }
+    for family in held_out::FAMILIES {
+        for k in 0..opts.holdout {
+            let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
+            let text = held_out::scene_text(family, seed).expect("a listed family");
+            jobs.push((format!("holdout-{family}-{k:03}"), "test", text));
         }
     }
     let start = opts.start.checked_rem(opts.count).unwrap_or(0);
@@ -405,6 +426,7 @@ mod tests {
             ref_spp: 2,
             seed: 3,
             named: false,
+            holdout: 0,
             ref_prefix_spp: vec![],
             start,
         };
@@ -427,6 +449,7 @@ mod tests {
             ref_spp: 2,
             seed: 3,
             named: false,
+            holdout: 0,
             ref_prefix_spp: vec![],
             start,
         };
@@ -448,6 +471,36 @@ mod tests {
             .collect();
         assert_eq!(names, ["scene-00000", "scene-00001"]);
         std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    #[test]
+    fn held_out_families_go_to_the_test_split_only() {
+        let opts = Options {
+            count: 20,
+            size: 8,
+            spp: vec![1],
+            ref_spp: 2,
+            seed: 3,
+            named: false,
+            holdout: 2,
+            ref_prefix_spp: vec![],
+            start: 0,
+        };
+        let held: Vec<_> = jobs(&opts)
+            .into_iter()
+            .filter(|(name, ..)| name.starts_with("holdout-"))
+            .collect();
+        let names: Vec<_> = held.iter().map(|(n, ..)| n.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "holdout-window-000",
+                "holdout-window-001",
+                "holdout-corridor-000",
+                "holdout-corridor-001"
+            ]
+        );
+        assert!(held.iter().all(|(_, split, _)| *split == "test"));
     }
 
     #[test]

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use temc_render::description::{format, generate, named};
+use temc_render::description::{format, generate, held_out, named};
 use temc_render::scene::Scene;
 use temc_render::{render_progressive, Settings};
 
@@ -47,6 +47,10 @@ enum Command {
         /// Seed.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// A family held out of training instead (window, corridor): the data set's
+        /// `holdout-*` test scenes.
+        #[arg(long)]
+        family: Option<String>,
     },
     /// Render a data set of noisy/reference pairs (resumable).
     Dataset(dataset::Args),
@@ -126,8 +130,21 @@ fn run(command: Command, cancel: &AtomicBool) -> Result<(), String> {
             }
             Ok(())
         }
-        Command::Generate { seed } => {
+        Command::Generate { seed, family: None } => {
             print!("{}", generate::scene_text(seed));
+            Ok(())
+        }
+        Command::Generate {
+            seed,
+            family: Some(f),
+        } => {
+            let text = held_out::scene_text(&f, seed).ok_or_else(|| {
+                format!(
+                    "unknown family '{f}' (one of {})",
+                    held_out::FAMILIES.join(", ")
+                )
+            })?;
+            print!("{text}");
             Ok(())
         }
         Command::Render(args) => render(args, cancel),
