@@ -126,7 +126,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"{ck['train_scenes']} training scenes" + (" (the set was still rendering)" if still_rendering(ck, data) else "")
         + " |",
         f"| steps | {ck['train_steps']:,} (batch {hp['batch']}, random {hp['crop']}x{hp['crop']} crops, "
-        "flips, rotations, aux dropout) |",
+        "flips, rotations, aux dropout)"
+        + (f"; {ck['skipped_steps']:,} skipped for a non-finite gradient (train.finite_step)"
+           if ck.get("skipped_steps") else "") + " |",
         f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, {hp['threads']} "
         f"thread(s) ({hours:.2f} h); validation excluded |",
         f"| optimiser | Adam, learning rate {hp['lr']:g} (the paper's 1e-4 suits its far longer run)"
@@ -142,7 +144,10 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
          + (f", plus {hp['mean_weight']:g} x the block-mean energy term (loss.block_mean_error)"
             + (f" from step {ck['mean_from_step']:,}" if ck.get("mean_from_step") else "")
             if hp["mean_weight"] else "") + " |"),
-        f"| output | filters, not pixels: {recon['levels']} pyramid level(s) of {recon['kernel']}x{recon['kernel']} "
+        f"| output | filters, not pixels: {recon['levels']} pyramid level(s)"
+        + (f" (grown from {ck['levels_from'][1]} at step {ck['levels_from'][0]:,}: train.add_levels)"
+           if ck.get("levels_from") else "")
+        + f" of {recon['kernel']}x{recon['kernel']} "
         f"{'luma and chroma kernels' if recon['split'] == 'both' else 'kernels (one for luma and chroma)'}, "
         f"demodulation {'on' if recon['demodulate'] else 'off'}, "
         + (("guides (the range term) on" + (f", added at step {ck['guide_from_step']:,}"
@@ -237,7 +242,8 @@ def checkpoint_facts(ckpt_path, model, data_root) -> dict:
             "params": count_params(model),
             "train_scenes": st.get("train_scenes", "an unrecorded number of"),
             "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
-            "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step")}
+            "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
+            "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0)}
 
 
 def write_goldens(model, path, gdir):

@@ -43,7 +43,7 @@ import torch
 
 from . import data, shard
 from .loss import ALPHA, noise2noise_loss, training_loss
-from .models import ARCHS, KERNEL, LEVELS, SPLITS, build, checkpoint_recon, count_params
+from .models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params
 from .reconstruct import reconstruct
 
 CHECKPOINT_LIMIT = 20 * 2**20
@@ -125,7 +125,47 @@ def add_guide(model, ck: dict) -> None:
     ck["recon"] = dict(ck["recon"], guide=True)
 
 
+# The finest level's blend logits when coarser levels are added: sigmoid(-4) = 0.018, so the
+# grown model starts within 2 % of the old one's output, yet the blend still gets a gradient.
+GROWN_BLEND_LOGIT = -4.0
+
+
+def add_levels(model, ck: dict, arch: str) -> None:
+    """Loads a checkpoint with fewer pyramid levels into `model` (built with more): every
+    weight is kept by name (the decoder already computes the coarser features; only their
+    zero-initialised heads are new) and Adam's moments follow their parameters. The finest
+    head's blend logits, never used while it was the coarsest level, start at
+    GROWN_BLEND_LOGIT, so the run goes on from the old model's output and learns how far to
+    take low frequencies from the new, further-reaching levels."""
+    old = checkpoint_recon(ck)
+    old_model = build(arch, ck["width"], old["levels"], old["kernel"], old["split"], old["guide"])
+    old_names = [n for n, _ in old_model.named_parameters()]
+    new_names = [n for n, _ in model.named_parameters()]
+    own = model.state_dict()
+    own.update(ck["model"])
+    model.load_state_dict(own)
+    heads = [m for m in model.modules() if isinstance(m, FilterHeads)]
+    if len(heads) != 1 or heads[0].part != "both":
+        raise SystemExit(f"growing levels needs one head set predicting both filters ({arch})")
+    n = old["kernel"] ** 2
+    with torch.no_grad():
+        heads[0].convs[0].bias[2 * n:2 * n + 2] = GROWN_BLEND_LOGIT
+    if ck.get("opt") is not None:
+        index = {name: i for i, name in enumerate(new_names)}
+        ck["opt"]["state"] = {index[old_names[int(i)]]: st for i, st in ck["opt"]["state"].items()}
+        ck["opt"]["param_groups"][0]["params"] = list(range(len(new_names)))
+    ck["recon"] = dict(ck["recon"], levels=model.levels)
+
+
 LR_FLOOR = 0.05
+
+
+def finite_step(loss, model) -> bool:
+    """Whether the loss and every gradient are finite (an optimiser step is safe)."""
+    if not torch.isfinite(loss):
+        return False
+    grads = [p.grad for p in model.parameters() if p.grad is not None]
+    return bool(torch.isfinite(torch.stack([g.abs().max() for g in grads])).all()) if grads else True
 
 
 def learning_rate(a, trained_s: float) -> float:
@@ -222,6 +262,9 @@ def train(a) -> dict:
         upgrade = a.guide and not held_recon["guide"]
         if upgrade:
             held_recon["guide"] = True
+        grow = a.levels > held_recon["levels"]
+        if grow:
+            held_recon["levels"] = a.levels
         held = (ck["arch"], ck["width"], held_recon)
         if held != (a.arch, a.width, rs):
             raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
@@ -229,6 +272,11 @@ def train(a) -> dict:
             add_guide(model, ck)
             ck["state"]["guide_from_step"] = ck["state"]["step"]
             print(f"{ckpt_path}: adding the guide channels", flush=True)
+        elif grow:
+            from_levels = checkpoint_recon(ck)["levels"]
+            add_levels(model, ck, a.arch)
+            ck["state"]["levels_from"] = [ck["state"]["step"], from_levels]
+            print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
         else:
             model.load_state_dict(ck["model"])
     model.to(device)
@@ -272,6 +320,8 @@ def train(a) -> dict:
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
+        if not all(torch.isfinite(v).all() for v in ck["model"].values() if v.is_floating_point()):
+            raise SystemExit(f"{ckpt_path}: non-finite weights; the last checkpoint is kept")
         _save(ck, ckpt_path)
         if os.path.getsize(ckpt_path) > CHECKPOINT_LIMIT:
             ck["opt"] = None
@@ -297,7 +347,14 @@ def train(a) -> dict:
                 else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        opt.step()
+        if finite_step(loss, model):
+            opt.step()
+        else:
+            # One NaN gradient would poison every weight and then the checkpoint: the
+            # batch is dropped (its time still counts) and the count goes in the card.
+            state["skipped_steps"] = state.get("skipped_steps", 0) + 1
+            print(f"step {state['step']}: non-finite loss or gradient, skipped "
+                  f"({state['skipped_steps']} so far)", flush=True)
         l = float(loss.detach())  # waits for the device: the step's time is all in
         if cuda:
             state["gpu_seconds"] += time.monotonic() - t0

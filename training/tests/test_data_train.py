@@ -10,6 +10,7 @@ import torch
 
 from temc_train import data, export, train
 from temc_train.models import build
+from temc_train.reconstruct import reconstruct
 
 SIZE = 32
 
@@ -162,6 +163,56 @@ def test_a_run_gains_the_guide_on_resume_and_keeps_its_outputs(dataset, tmp_path
     train.main(args + ["--guide", "1", "--max-steps", "3"])
     ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
     assert ck["recon"]["guide"] and ck["state"]["step"] == 3 and ck["opt"] is not None
+
+
+def test_a_run_grows_coarser_levels_on_resume_and_starts_near_its_output(dataset, tmp_path):
+    # Resuming a one-level run with --levels 3 keeps every trained weight and Adam moment by
+    # name; the new heads start at zero and the finest blend near 0, so the reconstructed
+    # image moves by about sigmoid(GROWN_BLEND_LOGIT) of the coarse levels' difference.
+    run = str(tmp_path / "run")
+    args = ["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--run", run, "--crop", "32",
+            "--batch", "2", "--val-minutes", "0", "--threads", "1", "--guide", "1"]
+    train.main(args + ["--levels", "1", "--max-steps", "3"])
+    before, *_ = export.load_checkpoint(os.path.join(run, "model.pt"))
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    grown = build("temc2", 0.0625, 3, 5, "both", True)
+    train.add_levels(grown, ck, "temc2")
+    old_params = dict(before.named_parameters())
+    for name, p in grown.named_parameters():
+        if name in old_params and not name.startswith("decoder.heads.convs.0.bias"):
+            assert torch.equal(p, old_params[name]), name
+    xs = [torch.rand(1, c, 32, 32) for c in (2, 1, 7)]
+    rgb = torch.rand(1, 3, 32, 32) * torch.rand(1, 1, 32, 32) ** 4 * 10
+    with torch.no_grad():
+        old = reconstruct(rgb, None, before.eval()(*xs), 5, guide=True)
+        new = reconstruct(rgb, None, grown.eval()(*xs), 5, guide=True)
+    change = float((new - old).abs().mean() / old.abs().mean())
+    assert 1e-4 < change < 0.03, change
+    train.main(args + ["--levels", "3", "--max-steps", "5"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["recon"]["levels"] == 3 and ck["state"]["levels_from"] == [3, 1]
+    assert ck["state"]["step"] == 5 and ck["opt"] is not None
+    with pytest.raises(SystemExit):  # and it does not shrink back
+        train.main(args + ["--levels", "2", "--max-steps", "6"])
+
+
+def test_a_non_finite_step_is_skipped_not_taken(dataset, tmp_path, monkeypatch):
+    # A NaN gradient would turn every weight to NaN and then overwrite the checkpoint (a
+    # grown run did at 20,700 CPU s): the step is dropped and counted instead.
+    calls = []
+    real = train.training_loss
+
+    def sometimes_nan(*args):
+        calls.append(1)
+        loss = real(*args)
+        return loss * float("nan") if len(calls) == 2 else loss
+    monkeypatch.setattr(train, "training_loss", sometimes_nan)
+    run = str(tmp_path / "run")
+    train.main(["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--levels", "1", "--run", run,
+                "--crop", "32", "--batch", "2", "--val-minutes", "0", "--threads", "1", "--max-steps", "3"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["state"]["skipped_steps"] == 1 and ck["state"]["step"] == 3
+    assert all(torch.isfinite(v).all() for v in ck["model"].values() if v.is_floating_point())
 
 
 def test_noise2noise_trains_on_the_reference_prefix(dataset, tmp_path):

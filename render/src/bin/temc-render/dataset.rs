@@ -417,19 +417,24 @@ fn write_manifest(opts: &Options, out: &Path, records: &[Record]) -> Result<Mani
 mod tests {
     use super::*;
 
-    #[test]
-    fn start_rotates_the_order_not_the_set() {
-        let opts = |start| Options {
-            count: 7,
+    /// Settings of a data set of `count` 8x8 scenes at 1 spp, no named scenes.
+    fn tiny(count: usize, holdout: usize, start: usize) -> Options {
+        Options {
+            count,
             size: 8,
             spp: vec![1],
             ref_spp: 2,
             seed: 3,
             named: false,
-            holdout: 0,
+            holdout,
             ref_prefix_spp: vec![],
             start,
-        };
+        }
+    }
+
+    #[test]
+    fn start_rotates_the_order_not_the_set() {
+        let opts = |start| tiny(7, 0, start);
         let (a, b) = (jobs(&opts(0)), jobs(&opts(12)));
         assert_eq!(b[0].0, "scene-00005");
         assert_eq!(b[2].0, "scene-00000");
@@ -442,17 +447,7 @@ mod tests {
     fn a_resumed_set_lists_its_finished_scenes_before_rendering_more() {
         let out = std::env::temp_dir().join(format!("temc-dataset-resume-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&out);
-        let opts = |count, start| Options {
-            count,
-            size: 8,
-            spp: vec![1],
-            ref_spp: 2,
-            seed: 3,
-            named: false,
-            holdout: 0,
-            ref_prefix_spp: vec![],
-            start,
-        };
+        let opts = |count, start| tiny(count, 0, start);
         let (quiet, none) = (|_: &str| {}, |_: usize| {});
         run(&opts(2, 0), &out, &quiet, &none, &AtomicBool::new(false)).unwrap();
         std::fs::remove_file(out.join("manifest.json")).unwrap();
@@ -475,17 +470,7 @@ mod tests {
 
     #[test]
     fn held_out_families_go_to_the_test_split_only() {
-        let opts = Options {
-            count: 20,
-            size: 8,
-            spp: vec![1],
-            ref_spp: 2,
-            seed: 3,
-            named: false,
-            holdout: 2,
-            ref_prefix_spp: vec![],
-            start: 0,
-        };
+        let opts = tiny(20, 2, 0);
         let held: Vec<_> = jobs(&opts)
             .into_iter()
             .filter(|(name, ..)| name.starts_with("holdout-"))
