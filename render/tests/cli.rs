@@ -86,6 +86,8 @@ fn dataset_renders_splits_and_resumes() {
                 "1,2",
                 "--ref-spp",
                 "4",
+                "--holdout",
+                "1",
             ])
             .arg("--out")
             .arg(&d)
@@ -97,11 +99,19 @@ fn dataset_renders_splits_and_resumes() {
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("manifest.json")).unwrap()).unwrap();
     let scenes = m["scenes"].as_array().unwrap();
-    // Three generated scenes plus the named stress scenes (all but the furnace) in test.
+    // Three generated scenes plus, in test, the named stress scenes (all but the furnace)
+    // and one scene of each held-out family.
+    let families = temc_render::description::held_out::FAMILIES.len();
     assert_eq!(
         scenes.len(),
-        3 + temc_render::description::named::NAMED.len() - 1
+        3 + temc_render::description::named::NAMED.len() - 1 + families
     );
+    let held: Vec<_> = scenes
+        .iter()
+        .filter(|s| s["name"].as_str().unwrap().starts_with("holdout-"))
+        .collect();
+    assert_eq!(held.len(), families);
+    assert!(held.iter().all(|s| s["split"] == "test"));
     for s in scenes {
         let dir = d.join(s["dir"].as_str().unwrap());
         for f in [

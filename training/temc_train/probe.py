@@ -38,10 +38,13 @@ def evaluate_run(model, recon, scenes):
     for sc in scenes:
         for s, spp in enumerate(sc.spp):
             out = denoise(model, recon, sc, s)
-            ref = sc.a["reference"]
-            res.setdefault(spp, []).append((evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref),
-                                            evaluate.mean_ratio(out, ref)))
+            res.setdefault(spp, []).append(scores(out, sc.a["reference"]))
     return res
+
+
+def scores(out, ref):
+    """(RelMSE, Delta E ITP, mean ratio) of one output: the probe's three columns."""
+    return evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref), evaluate.mean_ratio(out, ref)
 
 
 def evaluate_oidn(scenes):
@@ -55,9 +58,7 @@ def evaluate_oidn(scenes):
             layers = {"color": sc.a["color"][s], "albedo": sc.a["albedo"][s],
                       "normal": sc.a["normal"][s]}
             out, _ = evaluate.oidn_denoise(layers, "high", "full")
-            ref = sc.a["reference"]
-            res.setdefault(spp, []).append((evaluate.relmse(out, ref), evaluate.delta_e_itp(out, ref),
-                                            evaluate.mean_ratio(out, ref)))
+            res.setdefault(spp, []).append(scores(out, sc.a["reference"]))
     return res
 
 

@@ -130,24 +130,25 @@ def add_guide(model, ck: dict) -> None:
 GROWN_BLEND_LOGIT = -4.0
 
 
-def add_levels(model, ck: dict, arch: str) -> None:
+def add_levels(model, ck: dict) -> None:
     """Loads a checkpoint with fewer pyramid levels into `model` (built with more): every
     weight is kept by name (the decoder already computes the coarser features; only their
     zero-initialised heads are new) and Adam's moments follow their parameters. The finest
     head's blend logits, never used while it was the coarsest level, start at
     GROWN_BLEND_LOGIT, so the run goes on from the old model's output and learns how far to
     take low frequencies from the new, further-reaching levels."""
-    old = checkpoint_recon(ck)
-    old_model = build(arch, ck["width"], old["levels"], old["kernel"], old["split"], old["guide"])
-    old_names = [n for n, _ in old_model.named_parameters()]
+    heads = [m for m in model.modules() if isinstance(m, FilterHeads)]
+    if len(heads) != 1 or heads[0].part != "both":
+        raise SystemExit(f"growing levels needs one head set predicting both filters ({ck['arch']})")
     new_names = [n for n, _ in model.named_parameters()]
+    # The old model's parameters in its own order: a state_dict lists them as
+    # named_parameters does, with the buffers in between.
+    known = set(new_names)
+    old_names = [k for k in ck["model"] if k in known]
     own = model.state_dict()
     own.update(ck["model"])
     model.load_state_dict(own)
-    heads = [m for m in model.modules() if isinstance(m, FilterHeads)]
-    if len(heads) != 1 or heads[0].part != "both":
-        raise SystemExit(f"growing levels needs one head set predicting both filters ({arch})")
-    n = old["kernel"] ** 2
+    n = checkpoint_recon(ck)["kernel"] ** 2
     with torch.no_grad():
         heads[0].convs[0].bias[2 * n:2 * n + 2] = GROWN_BLEND_LOGIT
     if ck.get("opt") is not None:
@@ -274,7 +275,7 @@ def train(a) -> dict:
             print(f"{ckpt_path}: adding the guide channels", flush=True)
         elif grow:
             from_levels = checkpoint_recon(ck)["levels"]
-            add_levels(model, ck, a.arch)
+            add_levels(model, ck)
             ck["state"]["levels_from"] = [ck["state"]["step"], from_levels]
             print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
         else:

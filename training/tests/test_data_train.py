@@ -176,7 +176,7 @@ def test_a_run_grows_coarser_levels_on_resume_and_starts_near_its_output(dataset
     before, *_ = export.load_checkpoint(os.path.join(run, "model.pt"))
     ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
     grown = build("temc2", 0.0625, 3, 5, "both", True)
-    train.add_levels(grown, ck, "temc2")
+    train.add_levels(grown, ck)
     old_params = dict(before.named_parameters())
     for name, p in grown.named_parameters():
         if name in old_params and not name.startswith("decoder.heads.convs.0.bias"):

@@ -62,6 +62,14 @@ impl Gen {
         }
         format!("{:.3}", self.range(0.02, 0.45))
     }
+    /// The `floor` and `wall` materials: diffuse, textured, reflectance in the (lo, hi)
+    /// ranges given.
+    pub(super) fn floor_and_wall(&mut self, s: &mut String, floor: (f32, f32), wall: (f32, f32)) {
+        for (name, (lo, hi)) in [("floor", floor), ("wall", wall)] {
+            let t = self.texture(lo, hi);
+            let _ = writeln!(s, "material {name} diffuse reflectance {t}");
+        }
+    }
     pub(super) fn spectrum(&mut self) -> String {
         match self.u() {
             x if x < 0.35 => format!("blackbody {:.0}", self.range(2200.0, 9000.0)),
@@ -143,16 +151,7 @@ pub fn scene_text(seed: u64) -> String {
         look.2,
         g.range(35.0, 65.0)
     );
-    let _ = writeln!(
-        s,
-        "material floor diffuse reflectance {}",
-        g.texture(0.1, 0.85)
-    );
-    let _ = writeln!(
-        s,
-        "material wall diffuse reflectance {}",
-        g.texture(0.2, 0.85)
-    );
+    g.floor_and_wall(&mut s, (0.1, 0.85), (0.2, 0.85));
     let (x0, z0) = (-w / 2.0, -d / 2.0);
     let _ = writeln!(
         s,

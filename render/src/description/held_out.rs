@@ -43,16 +43,7 @@ fn quad(s: &mut String, corner: [f32; 3], e1: [f32; 3], e2: [f32; 3], material: 
 /// Floor, ceiling and walls of a w x h x d box centred on x = z = 0, facing inwards; the
 /// left wall (x = -w/2) is left out when `skip_left` (the caller builds it).
 fn shell(g: &mut Gen, s: &mut String, (w, h, d): (f32, f32, f32), skip_left: bool) {
-    let _ = writeln!(
-        s,
-        "material floor diffuse reflectance {}",
-        g.texture(0.1, 0.8)
-    );
-    let _ = writeln!(
-        s,
-        "material wall diffuse reflectance {}",
-        g.texture(0.3, 0.85)
-    );
+    g.floor_and_wall(s, (0.1, 0.8), (0.3, 0.85));
     let (x0, z0) = (-w / 2.0, -d / 2.0);
     quad(s, [x0, 0.0, z0], [0.0, 0.0, d], [w, 0.0, 0.0], "floor");
     quad(s, [x0, h, z0], [w, 0.0, 0.0], [0.0, 0.0, d], "wall");
