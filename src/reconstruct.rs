@@ -18,8 +18,13 @@ use crate::Error;
 /// Logits are clamped to +-this, NaN becomes 0 (docs/reconstruction.md, "Non-finite logits").
 pub const LOGIT_MAX: f32 = 1.0e4;
 
-/// Below this luminance the chroma filter's colour is undefined and the output is grey.
+/// Keeps the recombination's denominator positive where both filters give black.
 const MIN_CHROMA_LUMA: f32 = 1.0e-30;
+
+/// The recombination pulls the chroma colour toward grey by this fraction of the luminance,
+/// so a chroma result far darker than the luma one (no colour to speak of) becomes grey
+/// smoothly and training's gradients stay bounded by its inverse.
+const GREY_PULL: f32 = 1.0e-6;
 
 /// The most floats per window pixel that [`reconstruct`] holds besides its inputs and its
 /// [3, H, W] output (for memory budgets): the demodulated copy 3, the level-0 luminance 1,
@@ -452,12 +457,9 @@ fn recombine(cy: &[f32], cc: &[f32], d: Option<(&[f32], f32)>, n: usize, ldr: bo
         let c = [cc[i].max(0.0), cc[n + i].max(0.0), cc[2 * n + i].max(0.0)];
         let yc = LUMA_WEIGHTS[0] * c[0] + LUMA_WEIGHTS[1] * c[1] + LUMA_WEIGHTS[2] * c[2];
         let y = cy[i].max(0.0);
-        let mut v = if yc > MIN_CHROMA_LUMA {
-            let s = y / yc;
-            [c[0] * s, c[1] * s, c[2] * s]
-        } else {
-            [y; 3]
-        };
+        let pull = GREY_PULL * y;
+        let s = y / (yc + pull + MIN_CHROMA_LUMA);
+        let mut v = [(c[0] + pull) * s, (c[1] + pull) * s, (c[2] + pull) * s];
         if let Some((a, eps)) = d {
             (0..3).for_each(|ch| v[ch] *= a[ch * n + i] + eps);
         }
@@ -688,6 +690,40 @@ mod tests {
         for (i, &want) in luma[..n].iter().enumerate() {
             let got = lum(&out, n, i);
             assert!(close(got, want, 1e-5), "pixel {i}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn a_chroma_result_far_darker_than_the_luma_turns_grey_smoothly() {
+        // The centre's luma comes from a bright pixel, its chroma from a red-blue corner
+        // `tiny` times as bright: the hue survives 1e-4, and at 1e-12 there is none left.
+        let (h, w, n) = (3, 3, 9);
+        let p = params(1, 3);
+        let mut f = vec![-LOGIT_MAX; 20 * n];
+        f[4 * n..5 * n].fill(0.0); // luma: the centre tap
+        f[9 * n..10 * n].fill(0.0); // chroma: the top-left tap
+        for (tiny, grey) in [(1e-4f32, false), (1e-12, true), (1e-29, true)] {
+            let mut rgb = vec![0.0f32; 3 * n];
+            for (c, (centre, corner)) in [(0.5, 1.0), (0.4, 0.0), (0.3, 0.5)].iter().enumerate() {
+                (rgb[c * n + 4], rgb[c * n]) = (*centre, corner * tiny);
+            }
+            let out = run(&p, &rgb, None, &[f.clone()], h, w);
+            let (y, o) = (lum(&rgb, n, 4), [out[4], out[n + 4], out[2 * n + 4]]);
+            assert!(
+                close(lum(&out, n, 4), y, 1e-6),
+                "{tiny}: luminance {o:?} vs {y}"
+            );
+            if grey {
+                assert!(
+                    o.iter().all(|&v| (v - y).abs() < 1e-3 * y),
+                    "{tiny}: {o:?} not grey"
+                );
+            } else {
+                assert!(
+                    o[1] < 0.05 * y && o[0] > 1.5 * o[2],
+                    "{tiny}: hue lost, {o:?}"
+                );
+            }
         }
     }
 

@@ -17,6 +17,7 @@ LINEAR_MAX = 65504.0
 LUMA = (0.2126, 0.7152, 0.0722)
 LOGIT_MAX = 1e4
 MIN_CHROMA_LUMA = 1e-30
+GREY_PULL = 1e-6
 
 
 def channels(kernel, guide=False):
@@ -89,13 +90,15 @@ def _compose(fine, coarse, blend):
 
 
 def _recombine(cy, cc):
-    """The chroma filter's colour at the luma filter's luminance (grey where it has none)."""
+    """The chroma filter's colour at the luma filter's luminance, pulled toward grey where the
+    chroma result is darker than GREY_PULL of the luminance (docs/reconstruction.md step 5).
+    The pull bounds d out / d cc by 1 / GREY_PULL: a plain c * y / yc has gradients of
+    y / yc^2, which overflow float32 (and went NaN in a 3-level run) once yc < ~1e-19."""
     c = cc.clamp(min=0.0)
-    yc = _lum(c)
     y = cy.clamp(min=0.0)
-    ok = yc > MIN_CHROMA_LUMA
-    ratio = y / torch.where(ok, yc, torch.ones_like(yc))  # no inf, so no NaN gradients
-    return torch.where(ok, c * ratio, y)
+    pull = GREY_PULL * y
+    scale = y / (_lum(c) + pull + MIN_CHROMA_LUMA)
+    return (c + pull) * scale
 
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False):

@@ -29,9 +29,10 @@ SHIPPED = {
     # Noise2Noise probe (docs/noise2noise.md).
     "temc2-fast": ("temc2-w0.0625-single", "TEMC_QUALITY_FAST"),
     # Balanced: the best design of the equal-budget probes (docs/reconstruction-design.md),
-    # one level of 5x5, with guides (the range term) from step 805 on; the 3-level run
-    # (temc2-w0.125, 1081 CPU s) measured worse.
-    "temc2-balanced": ("temc2-w0.125-single", "TEMC_QUALITY_BALANCED (the default)"),
+    # one level of 5x5 with guides, forked at 14,007 CPU s from temc2-w0.125-single to add
+    # the block-mean energy term (--mean-weight 0.2), which measured better on 167 val+test
+    # images at 19,200 s; the 3-level runs (temc2-w0.125, and one grown to 3 levels) worse.
+    "temc2-balanced": ("temc2-w0.125-energy", "TEMC_QUALITY_BALANCED (the default)"),
     # High: three levels at width 0.25, with guides added to its first 721 CPU s.
     "temc2-high": ("temc2-w0.25", "TEMC_QUALITY_HIGH"),
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from temc_train import recon_vectors
-from temc_train.reconstruct import LINEAR_MAX, LUMA, channels, reach, reconstruct
+from temc_train.reconstruct import LINEAR_MAX, LOGIT_MAX, LUMA, channels, reach, reconstruct
 
 VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
 DOC = json.loads(VECTORS.read_text())
@@ -105,6 +105,33 @@ def test_demodulation_round_trips_a_constant_irradiance():
     rgb = torch.tensor([2.0, 1.5, 0.5]).view(1, 3, 1, 1) * (albedo + 0.01)
     out = reconstruct(rgb, albedo, random_filters(gen, 2, 16, 8, 2, 5, 3.0), 5, demodulate=True)
     torch.testing.assert_close(out, rgb, rtol=1e-5, atol=1e-6)
+
+
+def _one_pixel_case(chroma_tiny):
+    """A 3x3 image whose centre the luma filter takes from a bright pixel and the chroma
+    filter from a corner `chroma_tiny` times as bright (a red-blue corner)."""
+    rgb = torch.zeros(1, 3, 3, 3)
+    rgb[0, :, 1, 1] = torch.tensor([0.5, 0.4, 0.3])
+    rgb[0, :, 0, 0] = chroma_tiny * torch.tensor([1.0, 0.0, 0.5])
+    f = torch.full((1, channels(3), 3, 3), -LOGIT_MAX)
+    f[0, 4], f[0, 9] = 0.0, 0.0  # luma: the centre tap; chroma: the top-left tap
+    return rgb, f.requires_grad_()
+
+
+@pytest.mark.parametrize("tiny", [1e-4, 1e-12, 1e-25, 1e-29])
+def test_a_chroma_result_far_darker_than_the_luma_keeps_gradients_finite(tiny):
+    # c * y / yc had gradients y / yc^2: -inf, then NaN, from yc ~ 1e-19 down (measured).
+    rgb, f = _one_pixel_case(tiny)
+    out = reconstruct(rgb, None, [f], 3)
+    (out[0, :, 1, 1] * torch.tensor([1.0, 2.0, 3.0])).sum().backward()
+    assert torch.isfinite(f.grad).all()
+    centre = out[0, :, 1, 1]
+    y = float(lum(rgb)[0, 1, 1])
+    assert abs(float(lum(out)[0, 1, 1]) - y) < 1e-6 * y  # the luma path's luminance, always
+    if tiny >= 1e-4:  # colour still well above the pull: the corner's hue, green-free
+        assert float(centre[1]) < 0.05 * y and float(centre[0]) > 1.5 * float(centre[2])
+    else:  # no colour to speak of: grey
+        assert float((centre - y).abs().max()) < 1e-3 * y
 
 
 @pytest.mark.parametrize("demodulate,ldr", [(False, False), (True, False), (True, True)])
