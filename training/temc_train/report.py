@@ -561,6 +561,26 @@ def read_test_scenes(root, generated=None):
     return manifest, tests
 
 
+def pyplot():
+    """matplotlib's pyplot on the Agg backend, or a clear exit when matplotlib is missing.
+    Checked by type, not by import: colour-science puts a MagicMock into
+    sys.modules["matplotlib"] when matplotlib is absent, so the import alone succeeds and
+    the report would draw nothing (issue 34)."""
+    import types
+
+    try:
+        import matplotlib
+    except ImportError:
+        matplotlib = None
+    if not isinstance(matplotlib, types.ModuleType) or not getattr(matplotlib, "__file__", None):
+        raise SystemExit("the report needs matplotlib, which is not installed in this Python: "
+                         "pip install -r training/requirements.txt")
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
     """Measures and writes the report for the options `a` (parse_args'). `models`: per temc
     model (name, denoiser, bench: threads -> seconds); `aux`: (name, denoiser) of the model
@@ -568,9 +588,7 @@ def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
     a machine without pyoidn can run the rest (default: pyoidn's); `where` is the header's
     machine line (default: this machine's, today)."""
     oidn_denoise, oidn_time = oidn_denoise or oidn_denoiser, oidn_time or oidn_timing
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     img_dir = os.path.join(os.path.dirname(os.path.abspath(a.out)), "img", "accuracy")
     os.makedirs(img_dir, exist_ok=True)

@@ -290,3 +290,18 @@ def test_card_reports_threads_gpu_time_and_old_recipes():
     assert ship.still_rendering({"train_scenes": 5}, {"train": 7})
     assert not ship.still_rendering({"train_scenes": 7}, {"train": 7})
     assert not ship.still_rendering({"train_scenes": "an unrecorded number of"}, {"train": 7})
+
+
+def test_report_refuses_a_mock_matplotlib(monkeypatch):
+    """colour-science leaves a MagicMock in sys.modules["matplotlib"] when matplotlib is
+    missing (issue 34): the report must say so, not draw with the mock."""
+    from unittest import mock
+
+    monkeypatch.setitem(sys.modules, "matplotlib", mock.MagicMock())
+    with pytest.raises(SystemExit, match="needs matplotlib"):
+        report.pyplot()
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # what a failed import leaves
+    with pytest.raises(SystemExit, match="needs matplotlib"):
+        report.pyplot()
+    monkeypatch.undo()
+    assert hasattr(report.pyplot(), "subplots")
