@@ -6,9 +6,14 @@
 //! the filters drop), and the image's mean drifts. The noisy input's block mean is
 //! unbiased; the ratio of the input's and the output's block sums, per channel, clamped and
 //! interpolated bilinearly between block centres, restores it without moving detail. It
-//! runs on the whole image, so it is the same whatever the tiling or thread count.
+//! runs on the whole image, so it is the same whatever the tiling or thread count. A
+//! factor's part above [`SPREAD_ABOVE`] multiplies the output's local mean instead of the
+//! pixel, so a block whose filters dropped most of its energy gets it back as smooth light,
+//! not as its few remnants multiplied tenfold.
 //! `training/temc_train/keep_mean.py` is the same function; `tests/data/keep_mean_vectors.json`
 //! pins the two together.
+
+use std::collections::TryReserveError;
 
 /// Block side in pixels of the stage's first pass (docs/keep-mean-measured.md).
 pub const BLOCK: usize = 64;
@@ -17,31 +22,39 @@ pub const CLAMP: f64 = 4.0;
 /// The largest factor of the second pass, over the whole image: what the block clamp left
 /// (a dark room the filters darkened tenfold) without letting a nearly black output explode.
 pub const GLOBAL_CLAMP: f64 = 16.0;
+/// The largest factor applied to a pixel itself; the rest of a larger factor multiplies the
+/// output's mean over the pixel's [`SPREAD_RADIUS`] window (docs/keep-mean.md, "Spread").
+pub const SPREAD_ABOVE: f64 = 1.25;
+/// Radius of that window: (2 r + 1)^2 pixels, the part inside the image.
+pub const SPREAD_RADIUS: usize = 16;
 
 /// The core's keep-mean stage: [`keep_mean`] over [`BLOCK`]-pixel blocks (energy stays
 /// near where it was rendered), then over the whole image (its mean follows the input's
-/// within [`GLOBAL_CLAMP`]). `input` is the sanitised noisy radiance, read once: the whole
-/// image's sum is the sum of its block sums. `max` is the output ceiling.
+/// within [`GLOBAL_CLAMP`]), then over the whole image once more: window means do not keep
+/// sums near the image's edges, so a spread leaves the mean a little off, and this pass (a
+/// factor near 1: pure scaling) makes it exact. `input` is the sanitised noisy radiance,
+/// read once: the whole image's sum is the sum of its block sums. `max` is the output
+/// ceiling.
+///
+/// # Errors
+/// When the spread's one image-sized buffer cannot be allocated.
 pub fn stage(
     out: &mut [f32],
     input: impl Iterator<Item = [f32; 3]>,
     (w, h): (usize, usize),
     max: f32,
-) {
+) -> Result<(), TryReserveError> {
     let blocks = block_sums(input, (w, h), BLOCK);
-    rescale(out, &blocks, (w, h), BLOCK, CLAMP, max);
+    rescale(out, &blocks, (w, h), BLOCK, CLAMP, max)?;
     let total = blocks
         .2
         .iter()
         .fold([0f64; 3], |t, b| std::array::from_fn(|k| t[k] + b[k]));
-    rescale(
-        out,
-        &(1, 1, vec![total]),
-        (w, h),
-        w.max(h),
-        GLOBAL_CLAMP,
-        max,
-    );
+    let whole = (1, 1, vec![total]);
+    for _ in 0..2 {
+        rescale(out, &whole, (w, h), w.max(h), GLOBAL_CLAMP, max)?;
+    }
+    Ok(())
 }
 
 /// Per-channel sums over `block` x `block` blocks of `w` x `h` interleaved RGB pixels, row by
@@ -79,7 +92,10 @@ fn axis(n: usize, g: usize, block: usize) -> Vec<(usize, usize, f64)> {
 /// block's per-channel mean follows `input` (the sanitised noisy radiance the
 /// reconstruction filtered, same size and order). `block` 0 is one block for the whole
 /// image. Every factor is finite and in [1 / `clamp`, `clamp`] (1 where the output block is
-/// black), and the result is clamped to [0, `max`].
+/// black); its part above [`SPREAD_ABOVE`] spreads; the result is clamped to [0, `max`].
+///
+/// # Errors
+/// When the spread's one image-sized buffer cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long, `w` or `h` is 0, or `clamp` < 1.
@@ -90,12 +106,12 @@ pub fn keep_mean(
     block: usize,
     clamp: f64,
     max: f32,
-) {
+) -> Result<(), TryReserveError> {
     let block = if block == 0 { w.max(h) } else { block };
     // Every input pixel counts, a capped Inf too: the filters spread its value into its
     // neighbours, so leaving it out of the input's sum would darken its block and the image.
     let sums = block_sums(input, (w, h), block);
-    rescale(out, &sums, (w, h), block, clamp, max);
+    rescale(out, &sums, (w, h), block, clamp, max)
 }
 
 /// [`keep_mean`] from the input's block sums `(gw, gh, si)` (of [`block_sums`] at `block`).
@@ -106,7 +122,7 @@ fn rescale(
     block: usize,
     clamp: f64,
     max: f32,
-) {
+) -> Result<(), TryReserveError> {
     assert!(out.len() == w * h * 3 && w > 0 && h > 0 && clamp >= 1.0);
     let (gw, gh) = (*gw, *gh);
     let pixels = out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]);
@@ -122,17 +138,84 @@ fn rescale(
         })
         .collect();
     let (xs, ys) = (axis(w, gw, block), axis(h, gh, block));
-    for (y, &(y0, y1, fy)) in ys.iter().enumerate() {
-        for (x, &(x0, x1, fx)) in xs.iter().enumerate() {
-            let at = |gy: usize, gx: usize| &ratio[gy * gw + gx];
-            let o = (y * w + x) * 3;
-            for k in 0..3 {
-                let top = at(y0, x0)[k] * (1.0 - fx) + at(y0, x1)[k] * fx;
-                let bottom = at(y1, x0)[k] * (1.0 - fx) + at(y1, x1)[k] * fx;
-                let f = top * (1.0 - fy) + bottom * fy;
-                out[o + k] = ((out[o + k] as f64 * f) as f32).clamp(0.0, max);
-            }
+    // The factor at pixel (x, y), channel k: bilinear between the block centres.
+    let factor = |x: usize, y: usize, k: usize| {
+        let ((x0, x1, fx), (y0, y1, fy)) = (xs[x], ys[y]);
+        let at = |gy: usize, gx: usize| ratio[gy * gw + gx][k];
+        let top = at(y0, x0) * (1.0 - fx) + at(y0, x1) * fx;
+        let bottom = at(y1, x0) * (1.0 - fx) + at(y1, x1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    };
+    // A pixel's factor is a convex mix of block factors: none above SPREAD_ABOVE, no spread.
+    if !ratio.iter().flatten().any(|&r| r > SPREAD_ABOVE) {
+        for (i, v) in out.iter_mut().enumerate() {
+            let (p, k) = (i / 3, i % 3);
+            *v = ((*v as f64 * factor(p % w, p / w, k)) as f32).clamp(0.0, max);
         }
+        return Ok(());
+    }
+    let rows = row_means(out, (w, h), SPREAD_RADIUS)?;
+    window_means(&rows, (w, h), SPREAD_RADIUS, |y, mean| {
+        let row = &mut out[y * w * 3..(y + 1) * w * 3];
+        for (i, v) in row.iter_mut().enumerate() {
+            let f = factor(i / 3, y, i % 3);
+            let scale = f.min(SPREAD_ABOVE);
+            let o = *v as f64 * scale + (f - scale) * mean[i];
+            *v = (o as f32).clamp(0.0, max);
+        }
+    });
+    Ok(())
+}
+
+/// The window of radius `r` around `i` along an axis of `n`, clipped to it: [lo, hi).
+fn window(i: usize, n: usize, r: usize) -> (usize, usize) {
+    (i.saturating_sub(r), (i + r + 1).min(n))
+}
+
+/// Each pixel's per-channel mean over its row segment of radius `r` (inside the image), for
+/// [`window_means`]: the window is a product of segments, so its mean is separable.
+fn row_means(img: &[f32], (w, h): (usize, usize), r: usize) -> Result<Vec<f32>, TryReserveError> {
+    let mut rows = Vec::new();
+    rows.try_reserve_exact(w * h * 3)?;
+    let mut prefix = vec![[0f64; 3]; w + 1];
+    for y in 0..h {
+        let line = &img[y * w * 3..(y + 1) * w * 3];
+        for x in 0..w {
+            prefix[x + 1] = std::array::from_fn(|k| prefix[x][k] + line[x * 3 + k] as f64);
+        }
+        for x in 0..w {
+            let (lo, hi) = window(x, w, r);
+            let n = (hi - lo) as f64;
+            rows.extend((0..3).map(|k| ((prefix[hi][k] - prefix[lo][k]) / n) as f32));
+        }
+    }
+    Ok(rows)
+}
+
+/// Calls `f(y, means)` for every row y in order, `means` [w * 3] the (2r + 1)^2 window means
+/// (the [`row_means`] averaged over the window's rows, in float64 running sums).
+fn window_means(rows: &[f32], (w, h): (usize, usize), r: usize, mut f: impl FnMut(usize, &[f64])) {
+    let (mut acc, mut mean) = (vec![0f64; w * 3], vec![0f64; w * 3]);
+    let add = |acc: &mut [f64], y: usize, sign: f64| {
+        let row = &rows[y * w * 3..(y + 1) * w * 3];
+        acc.iter_mut()
+            .zip(row)
+            .for_each(|(a, &v)| *a += sign * v as f64);
+    };
+    for y in 0..r.min(h) {
+        add(&mut acc, y, 1.0);
+    }
+    for y in 0..h {
+        if y + r < h {
+            add(&mut acc, y + r, 1.0);
+        }
+        if y > r {
+            add(&mut acc, y - r - 1, -1.0);
+        }
+        let (lo, hi) = window(y, h, r);
+        let n = (hi - lo) as f64;
+        mean.iter_mut().zip(&acc).for_each(|(m, &a)| *m = a / n);
+        f(y, &mean);
     }
 }
 
@@ -156,7 +239,7 @@ mod tests {
             .map(|i| [(i % 7) as f32, 0.5 + (i % 3) as f32, 0.01])
             .collect();
         let mut out: Vec<f32> = input.iter().flat_map(|p| p.map(|v| 0.8 * v)).collect();
-        keep_mean(&mut out, input.iter().copied(), (w, h), 16, CLAMP, f32::MAX);
+        keep_mean(&mut out, input.iter().copied(), (w, h), 16, CLAMP, f32::MAX).unwrap();
         let flat: Vec<f32> = input.iter().flatten().copied().collect();
         for k in 0..3 {
             let ratio = mean(&out, k) / mean(&flat, k);
@@ -167,29 +250,65 @@ mod tests {
     #[test]
     fn factors_are_clamped_and_black_blocks_stay_black() {
         let (w, h) = (8, 8);
-        // Input bright everywhere; output black in the left half, dim in the right.
+        // Input bright everywhere; output black in the left half, dim in the right. The
+        // clamp stays below SPREAD_ABOVE, so every factor scales its own pixel.
         let input = vec![[10.0f32; 3]; w * h];
         let mut out: Vec<f32> = (0..w * h)
             .flat_map(|i| if i % w < 4 { [0.0; 3] } else { [1.0; 3] })
             .collect();
-        keep_mean(&mut out, input.into_iter(), (w, h), 4, 2.0, f32::MAX);
+        keep_mean(&mut out, input.into_iter(), (w, h), 4, 1.2, f32::MAX).unwrap();
         for (i, v) in out.chunks_exact(3).enumerate() {
-            // Right blocks want 10x, clamped to 2; the black blocks' factor 1 blends in
+            // Right blocks want 10x, clamped to 1.2; the black blocks' factor 1 blends in
             // over the two columns between the block centres.
             let want = match i % w {
                 0..4 => 0.0,
-                4 => 1.625,
-                5 => 1.875,
-                _ => 2.0,
+                4 => 1.125,
+                5 => 1.175,
+                _ => 1.2,
             };
-            assert!(v.iter().all(|&c| c == want), "pixel {i}: {v:?}");
+            assert!(
+                v.iter().all(|&c| (c - want).abs() < 1e-6),
+                "pixel {i}: {v:?}"
+            );
         }
+    }
+
+    /// A block whose filter dropped most of its energy keeps one remnant (a firefly it
+    /// half-kept): the missing light comes back over the block, not in the remnant. Scaling
+    /// alone (the stage before the spread) made it 3.3x brighter.
+    #[test]
+    fn missing_energy_comes_back_smooth_not_in_the_remnants() {
+        let (w, h) = (64, 64);
+        let input = vec![[0.1f32; 3]; w * h];
+        let remnant = 40 * w + 23;
+        let mut out: Vec<f32> = (0..w * h)
+            .flat_map(|i| [if i == remnant { 0.5 } else { 0.03 }; 3])
+            .collect();
+        stage(&mut out, input.iter().copied(), (w, h), f32::MAX).unwrap();
+        for k in 0..3 {
+            let ratio = mean(&out, k) / 0.1;
+            assert!(
+                (ratio - 1.0).abs() < 1e-5,
+                "channel {k}: mean ratio {ratio}"
+            );
+            let r = out[remnant * 3 + k];
+            assert!(r < 2.0 * 0.5 && r > 0.5, "channel {k}: remnant became {r}");
+        }
+        // The dark pixels carry the light: all of them near 0.1 (the window mean of a
+        // pixel near the remnant holds a little of it).
+        let dark = out
+            .chunks_exact(3)
+            .enumerate()
+            .filter(|(i, _)| *i != remnant);
+        assert!(dark
+            .flat_map(|(_, p)| p)
+            .all(|&v| (0.095..0.105).contains(&v)));
     }
 
     #[test]
     fn one_pixel_images_and_limits() {
         let mut out = vec![1.0f32, 0.0, 3.0];
-        keep_mean(&mut out, [[3.0, 5.0, 1e9]].into_iter(), (1, 1), 0, 4.0, 1.0);
+        keep_mean(&mut out, [[3.0, 5.0, 1e9]].into_iter(), (1, 1), 0, 4.0, 1.0).unwrap();
         assert_eq!(out, vec![1.0, 0.0, 1.0]);
     }
 
@@ -229,6 +348,7 @@ mod tests {
                 }
                 None => stage(&mut out, pixels(), (w, h), max),
             }
+            .unwrap();
             for (i, (got, want)) in out.iter().zip(floats(&c["want"])).enumerate() {
                 let tol = 1e-5 * want.abs().max(1.0);
                 assert!(

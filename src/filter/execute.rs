@@ -441,7 +441,8 @@ pub(super) fn run(
     }
     let limit = if job.hdr { color::LINEAR_MAX } else { 1.0 };
     let input = src.color.pixels().map(|c| radiance(c, job.hdr));
-    keep_mean::stage(&mut staged, input, (w, h), limit);
+    keep_mean::stage(&mut staged, input, (w, h), limit)
+        .map_err(|_| Error::OutOfMemory(format!("keep-mean spread for {w}x{h}")))?;
 
     let stats = ExecuteStats {
         tiles: n_tiles,

@@ -23,6 +23,12 @@ from .color import LINEAR_MAX
 BLOCK = 64
 CLAMP = 4.0
 GLOBAL_CLAMP = 16.0
+# A factor above SPREAD_ABOVE scales the pixel by SPREAD_ABOVE only and adds the rest times
+# the output's mean over the (2 SPREAD_RADIUS + 1)^2 window around it: a block whose filter
+# dropped most of its energy (the dark room's fireflies) gets it back as smooth light, not
+# as its few remnants multiplied tenfold (docs/keep-mean.md, "Spread").
+SPREAD_ABOVE = 1.25
+SPREAD_RADIUS = 16
 
 
 def block_sums(x: np.ndarray, block: int) -> np.ndarray:
@@ -62,20 +68,49 @@ def interpolate(r: np.ndarray, h: int, w: int, block: int) -> np.ndarray:
     return top * (1 - fy) + bottom * fy
 
 
+def window_mean(x: np.ndarray, r: int) -> np.ndarray:
+    """[H, W, C] float64 mean over the (2r + 1)^2 window around each pixel, the part of it
+    inside the image (a flat image stays flat)."""
+    h, w, c = x.shape
+    p = np.zeros((h + 1, w + 1, c))
+    p[1:, 1:] = np.cumsum(np.cumsum(x.astype(np.float64), 0), 1)
+    i0, i1 = np.clip(np.arange(h) - r, 0, h), np.clip(np.arange(h) + r + 1, 0, h)
+    j0, j1 = np.clip(np.arange(w) - r, 0, w), np.clip(np.arange(w) + r + 1, 0, w)
+    s = p[i1][:, j1] - p[i0][:, j1] - p[i1][:, j0] + p[i0][:, j0]
+    return s / ((i1 - i0)[:, None] * (j1 - j0)[None, :])[..., None]
+
+
+def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
+          radius: int = SPREAD_RADIUS) -> np.ndarray:
+    """`out` times the factors `f`, where a factor's part above `above` multiplies the
+    output's window mean instead of the pixel (float64)."""
+    o = out.astype(np.float64)
+    if not (f > above).any():
+        return o * f
+    scale = np.minimum(f, above)
+    return o * scale + (f - scale) * window_mean(o, radius)
+
+
 def keep_mean(out: np.ndarray, noisy: np.ndarray, block: int = BLOCK, clamp: float = CLAMP,
-              ldr: bool = False) -> np.ndarray:
+              ldr: bool = False, above: float = SPREAD_ABOVE) -> np.ndarray:
     """`out` [H, W, 3] rescaled so each block's mean follows `noisy` (the sanitised input the
-    reconstruction filtered); block 0 means one block for the whole image. Result finite,
-    in [0, LINEAR_MAX] (LDR: [0, 1])."""
-    return np.clip(out * factors(out, noisy, block, clamp), 0.0,
+    reconstruction filtered); block 0 means one block for the whole image; factors above
+    `above` spread (`apply`; inf: pure scaling). Result finite, in [0, LINEAR_MAX] (LDR:
+    [0, 1])."""
+    return np.clip(apply(out, factors(out, noisy, block, clamp), above), 0.0,
                    1.0 if ldr else LINEAR_MAX).astype(np.float32)
 
 
-def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False) -> np.ndarray:
+def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False,
+          above: float = SPREAD_ABOVE) -> np.ndarray:
     """The core's keep-mean stage: keep_mean over BLOCK-pixel blocks (local energy), then
-    over the whole image (what the block clamp left)."""
-    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr)
-    return keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr)
+    over the whole image (what the block clamp left), then over the whole image once more:
+    window means are not sum-preserving near the image's edges, so after a spread the mean
+    is a little off, and this pass (a factor near 1: pure scaling) makes it exact. `above`
+    other than SPREAD_ABOVE is for the probe's variants (inf: scaling only)."""
+    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above)
+    whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above)
+    return keep_mean(whole, noisy, 0, GLOBAL_CLAMP, ldr, above)
 
 
 def factors(out: np.ndarray, noisy: np.ndarray, block: int, clamp: float) -> np.ndarray:
@@ -112,7 +147,7 @@ def vector_cases():
             den = np.round(0.1 * den, 4)
             want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)
         else:
-            want = np.clip(den * factors(den, noisy, block, clamp), 0.0, 1.0 if ldr else LINEAR_MAX)
+            want = np.clip(apply(den, factors(den, noisy, block, clamp)), 0.0, 1.0 if ldr else LINEAR_MAX)
         out.append(dict(name=name, w=w, h=h, block=block, clamp=clamp, ldr=ldr,
                         input=noisy.ravel().tolist(), output=den.ravel().tolist(),
                         want=[float(f"{v:.9g}") for v in want.ravel()]))

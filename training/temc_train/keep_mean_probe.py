@@ -1,7 +1,7 @@
 """Measures the keep-mean stage's settings on one trained model (docs/keep-mean.md).
 
     python -m temc_train.keep_mean_probe --data ../data/spectral-v2 \\
-        --checkpoint runs/temc2-w0.125-single/checkpoint.pt --out ../docs/keep-mean-measured.md
+        --checkpoint runs/temc2-w0.125-energy/checkpoint.pt --out ../docs/keep-mean-measured.md
 
 Every validation and test image is denoised once through the network and reconstruct.py
 (the core's function), then each variant below rescales that output; per spp: geometric-mean
@@ -23,6 +23,9 @@ from .keep_mean import interpolate, keep_mean, ratios, stage
 from .probe import denoise
 
 
+INF = float("inf")
+
+
 def _luma_variant(block, clamp):
     """One factor per block from luminance, applied to all three channels (keeps hue)."""
     def apply(out, noisy):
@@ -36,17 +39,21 @@ def _luma_variant(block, clamp):
 
 VARIANTS = {
     "none": lambda out, noisy: out,
-    "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0),
+    "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0, above=INF),
     "global, luminance": _luma_variant(0, 4.0),
-    "blocks of 16, clamp 4": lambda out, noisy: keep_mean(out, noisy, 16, 4.0),
-    "blocks of 32, clamp 4": lambda out, noisy: keep_mean(out, noisy, 32, 4.0),
-    "blocks of 32, clamp 2": lambda out, noisy: keep_mean(out, noisy, 32, 2.0),
-    "blocks of 32, clamp 16": lambda out, noisy: keep_mean(out, noisy, 32, 16.0),
-    "global, per channel, clamp 16": lambda out, noisy: keep_mean(out, noisy, 0, 16.0),
+    "blocks of 16, clamp 4": lambda out, noisy: keep_mean(out, noisy, 16, 4.0, above=INF),
+    "blocks of 32, clamp 4": lambda out, noisy: keep_mean(out, noisy, 32, 4.0, above=INF),
+    "blocks of 32, clamp 2": lambda out, noisy: keep_mean(out, noisy, 32, 2.0, above=INF),
+    "blocks of 32, clamp 16": lambda out, noisy: keep_mean(out, noisy, 32, 16.0, above=INF),
+    "global, per channel, clamp 16": lambda out, noisy: keep_mean(out, noisy, 0, 16.0, above=INF),
     "blocks of 32, clamp 4, then global clamp 16":
-        lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0), noisy, 0, 16.0),
-    "the core's stage: blocks of 64, clamp 4, then global clamp 16": stage,
-    "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0),
+        lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0, above=INF), noisy, 0, 16.0, above=INF),
+    "blocks of 64, clamp 4, then global clamp 16, scaling only (the stage before 2026-12-04)":
+        lambda out, noisy: stage(out, noisy, above=INF),
+    "the same, factors above 1.1 spread": lambda out, noisy: stage(out, noisy, above=1.1),
+    "the core's stage: the same, factors above 1.25 spread over 33x33": stage,
+    "the same, factors above 2 spread": lambda out, noisy: stage(out, noisy, above=2.0),
+    "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
 }
 
@@ -65,9 +72,12 @@ def main(argv=None):
     ap.add_argument("--checkpoint", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--splits", default="val,test", help="comma-separated splits to denoise")
+    ap.add_argument("--spp", default="", help="comma-separated spp to probe (default: all)")
     a = ap.parse_args(argv)
     torch.set_num_threads(a.threads)
-    scenes = data.load_split(a.data, "val") + data.load_split(a.data, "test")
+    scenes = [sc for split in a.splits.split(",") for sc in data.load_split(a.data, split)]
+    only = {int(x) for x in a.spp.split(",") if x}
     model, *_ = load_checkpoint(a.checkpoint)
     recon = recon_of(model)
     res = {}  # {(variant, spp): [(relmse, dE, mean ratio)]}
@@ -75,6 +85,8 @@ def main(argv=None):
     for sc in scenes:
         ref = sc.a["reference"]
         for s, spp in enumerate(sc.spp):
+            if only and spp not in only:
+                continue
             noisy = color.sanitize_rgb(sc.a["color"][s])
             out = denoise(model, recon, sc, s, keep=False)
             for name, f in [("noisy input", lambda o, n: n)] + list(VARIANTS.items()):
@@ -88,8 +100,9 @@ def main(argv=None):
         "# The keep-mean stage, measured",
         "",
         "Regenerate: `cd training && python -m temc_train.keep_mean_probe --data ../data/spectral-v2 "
-        f"--checkpoint {a.checkpoint} --out ../docs/keep-mean-measured.md`.",
-        f"{len(scenes)} whole images of the validation and test splits, full aux, denoised once by the",
+        f"--checkpoint {a.checkpoint} --splits {a.splits}" + (f" --spp {a.spp}" if a.spp else "")
+        + " --out ../docs/keep-mean-measured.md`.",
+        f"{len(scenes)} whole images of the {a.splits} split(s), full aux, denoised once by the",
         "checkpoint above through reconstruct.py; each variant then rescales that output. Per spp:",
         "geometric-mean RelMSE | mean Delta E ITP | worst |mean / reference mean - 1| (scene) |",
         "scenes within 1 % of the reference's mean (both means in the output space: gamut-mapped",

@@ -36,9 +36,11 @@ def test_the_stage_keeps_the_image_mean_past_the_block_clamp():
 
 
 def test_block_means_follow_the_input():
+    """Factors up to SPREAD_ABOVE scale their own pixels: block sums come back exactly."""
     rng = np.random.default_rng(1)
     noisy = (2 * rng.random((96, 64, 3)) ** 4).astype(np.float32)
-    darker = noisy * 0.7
+    darker = noisy * 0.85
+    assert 1 / 0.85 < km.SPREAD_ABOVE
     out = km.keep_mean(darker, noisy, 32, 4.0)
     np.testing.assert_allclose(km.block_sums(out, 32), km.block_sums(noisy, 32), rtol=1e-5)
 
@@ -58,7 +60,30 @@ def test_clamp_black_and_non_finite():
     noisy = np.full((8, 8, 3), 10.0, np.float32)
     out = np.zeros((8, 8, 3), np.float32)
     out[:, 4:] = 1.0
+    scaled = km.keep_mean(out, noisy, 4, 2.0, above=np.inf)
+    assert np.all(scaled[:, :4] == 0) and np.all(scaled[:, 6:] == 2.0)
+    # With the spread, the part of the factor 2 above SPREAD_ABOVE multiplies the window's
+    # mean (0.5: the window covers the image); pixels whose factor stays at or below
+    # SPREAD_ABOVE (columns 0-2) stay black.
     got = km.keep_mean(out, noisy, 4, 2.0)
-    assert np.all(got[:, :4] == 0) and np.all(got[:, 6:] == 2.0)
+    assert np.all(got[:, :3] == 0)
+    np.testing.assert_allclose(got[:, 6:], km.SPREAD_ABOVE + (2.0 - km.SPREAD_ABOVE) * 0.5, rtol=1e-6)
     huge = km.keep_mean(np.full((4, 4, 3), 60000, np.float32), np.full((4, 4, 3), 65504, np.float32))
     assert np.isfinite(huge).all() and huge.max() <= 65504
+
+
+def test_missing_energy_comes_back_smooth_not_in_the_remnants():
+    """Twin of src/keep_mean.rs's test: a block whose filter dropped most of its energy keeps
+    one remnant; the stage brings the mean back over the block, not into the remnant (scaling
+    alone made it 3.3x brighter)."""
+    noisy = np.full((64, 64, 3), 0.1, np.float32)
+    out = np.full((64, 64, 3), 0.03, np.float32)
+    out[40, 23] = 0.5
+    got = km.stage(out, noisy)
+    np.testing.assert_allclose(got.astype(np.float64).mean((0, 1)), 0.1, rtol=1e-5)
+    assert np.all((got[40, 23] > 0.5) & (got[40, 23] < 1.0)), got[40, 23]
+    dark = np.delete(got.reshape(-1, 3), 40 * 64 + 23, axis=0)
+    assert np.all((dark > 0.095) & (dark < 0.105))
+    old = km.keep_mean(km.keep_mean(out, noisy, km.BLOCK, km.CLAMP, above=np.inf), noisy, 0,
+                       km.GLOBAL_CLAMP, above=np.inf)
+    assert np.all(old[40, 23] > 1.6)
