@@ -225,7 +225,8 @@ typedef uint32_t TEMCQuality;
 // Balanced.
 #define TEMC_QUALITY_BALANCED 5
 
-// Highest quality.
+// Highest quality. For now the balanced network: the 3-level width-0.25 high model
+// trailed it and was retired (training/runs/RETIRED.md).
 #define TEMC_QUALITY_HIGH 6
 
 #ifdef __cplusplus

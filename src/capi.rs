@@ -171,7 +171,8 @@ pub const TEMC_QUALITY_DEFAULT: TEMCQuality = 0;
 pub const TEMC_QUALITY_FAST: TEMCQuality = 4;
 /// Balanced.
 pub const TEMC_QUALITY_BALANCED: TEMCQuality = 5;
-/// Highest quality.
+/// Highest quality. For now the balanced network: the 3-level width-0.25 high model
+/// trailed it and was retired (training/runs/RETIRED.md).
 pub const TEMC_QUALITY_HIGH: TEMCQuality = 6;
 
 /// Called with each error as it happens: user pointer, code, message (valid during the

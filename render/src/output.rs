@@ -9,6 +9,14 @@ use std::path::{Path, PathBuf};
 /// share one. The same scheme as temc's own writer (`temc::io`): `.NAME.temc-PID.tmp.EXT`,
 /// keeping the extension last.
 pub fn temp_path(path: &Path) -> PathBuf {
+    temp_path_tagged(path, "")
+}
+
+/// [`temp_path`] with `tag` after the process id (`.NAME.temc-PID-TAG.tmp.EXT`), for a
+/// file that processes on several machines may write at once, such as the settings every
+/// part of a cluster render writes into a shared data set folder: process ids on
+/// different machines can coincide, and two writers sharing a temporary file would fail.
+pub fn temp_path_tagged(path: &Path, tag: &str) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -17,7 +25,15 @@ pub fn temp_path(path: &Path) -> PathBuf {
         .extension()
         .map(|e| e.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.temc-{}.tmp.{ext}", std::process::id()))
+    let tag = if tag.is_empty() {
+        String::new()
+    } else {
+        format!("-{tag}")
+    };
+    path.with_file_name(format!(
+        ".{name}.temc-{}{tag}.tmp.{ext}",
+        std::process::id()
+    ))
 }
 
 /// Writes `path` through `write`, which gets the temporary path to fill; on any error the
@@ -26,12 +42,20 @@ pub fn write_atomic<E: std::fmt::Display>(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), E>,
 ) -> Result<(), String> {
-    let tmp = temp_path(path);
-    let result = write(&tmp)
+    write_through(&temp_path(path), path, write)
+}
+
+/// [`write_atomic`] through the temporary file `tmp`.
+fn write_through<E: std::fmt::Display>(
+    tmp: &Path,
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), String> {
+    let result = write(tmp)
         .map_err(|e| format!("{}: {e}", tmp.display()))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display())));
+        .and_then(|()| std::fs::rename(tmp, path).map_err(|e| format!("{}: {e}", path.display())));
     if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(tmp);
     }
     result
 }
@@ -39,6 +63,13 @@ pub fn write_atomic<E: std::fmt::Display>(
 /// Writes `bytes` to `path` atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     write_atomic(path, |tmp| std::fs::write(tmp, bytes))
+}
+
+/// Writes `bytes` to `path` atomically through [`temp_path_tagged`]`(path, tag)`.
+pub fn write_bytes_atomic_tagged(path: &Path, tag: &str, bytes: &[u8]) -> Result<(), String> {
+    write_through(&temp_path_tagged(path, tag), path, |tmp| {
+        std::fs::write(tmp, bytes)
+    })
 }
 
 #[cfg(test)]
@@ -61,5 +92,19 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), b"one");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn tagged_temporaries_differ_and_stay_hidden() {
+        let path = Path::new("data/dataset.json");
+        let (a, b) = (
+            temp_path_tagged(path, "part-1-of-2"),
+            temp_path_tagged(path, "part-2-of-2"),
+        );
+        assert_ne!(a, b);
+        let name = a.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with(".dataset.json.temc-"), "{name}");
+        assert!(name.ends_with("-part-1-of-2.tmp.json"), "{name}");
+        assert_eq!(temp_path_tagged(path, ""), temp_path(path));
     }
 }

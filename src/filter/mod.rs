@@ -44,7 +44,8 @@ pub enum Quality {
     Fast = 4,
     /// The default trade-off.
     Balanced = 5,
-    /// Best quality.
+    /// Best quality. For now the balanced network, until a high model beats it
+    /// (src/filter/builtin.rs).
     High = 6,
 }
 

@@ -34,9 +34,18 @@ CROP = 128
 
 def read_exr(path: str) -> dict:
     """Layers of one temc-render EXR as float32 arrays: color/albedo/normal [H,W,3],
-    depth [H,W]."""
-    import Imath
-    import OpenEXR
+    depth [H,W]. Without the OpenEXR package (the GPU machine), exr_numpy reads it."""
+    try:
+        import Imath
+        import OpenEXR
+    except ImportError:
+        from . import exr_numpy
+
+        ch = exr_numpy.read(path)
+        return {"color": np.stack([ch[f"color.{c}"] for c in "RGB"], -1),
+                "albedo": np.stack([ch[f"albedo.{c}"] for c in "RGB"], -1),
+                "normal": np.stack([ch[f"normal.{c}"] for c in "XYZ"], -1),
+                "depth": ch["depth.Z"]}
 
     f = OpenEXR.InputFile(path)
     try:
@@ -251,3 +260,26 @@ def validation_set(scenes: list, crop: int = CROP) -> list:
             out.append(make_sample(sc, rng, crop, spp_index=s, augment=False, aux_mode="full",
                                    origin=((h - c) // 2, (w - c) // 2)))
     return [np.stack(x) for x in zip(*out)] if out else []
+
+
+def ready(root: str, n_train: int, n_val: int) -> bool:
+    """Whether a data set that is still rendering has `n_train` training and `n_val`
+    validation scenes finished (scripts/train-gpu waits for them before training)."""
+    try:
+        return len(_records(root, "train")) >= n_train and len(_records(root, "val")) >= n_val
+    except (OSError, ValueError, KeyError):
+        return False  # no manifest yet, or one being replaced
+
+
+def main(argv=None):
+    import argparse
+
+    ap = argparse.ArgumentParser(description="python -m temc_train.data --ready DIR N_TRAIN N_VAL: "
+                                             "exit 0 once DIR has that many finished scenes")
+    ap.add_argument("--ready", nargs=3, metavar=("DIR", "N_TRAIN", "N_VAL"), required=True)
+    a = ap.parse_args(argv)
+    raise SystemExit(0 if ready(a.ready[0], int(a.ready[1]), int(a.ready[2])) else 1)
+
+
+if __name__ == "__main__":
+    main()

@@ -33,8 +33,9 @@ SHIPPED = {
     # the block-mean energy term (--mean-weight 0.2), which measured better on 167 val+test
     # images at 19,200 s; the 3-level runs (temc2-w0.125, and one grown to 3 levels) worse.
     "temc2-balanced": ("temc2-w0.125-energy", "TEMC_QUALITY_BALANCED (the default)"),
-    # High: three levels at width 0.25, with guides added to its first 721 CPU s.
-    "temc2-high": ("temc2-w0.25", "TEMC_QUALITY_HIGH"),
+    # No high file: the 3-level w0.25 run (temc2-w0.25) trailed balanced and was retired
+    # (runs/RETIRED.md), so TEMC_QUALITY_HIGH runs balanced (src/filter/builtin.rs) until a
+    # high model beats it.
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
 }
@@ -46,13 +47,9 @@ MIN_OVERLAP = {
     "temc2-balanced": 96,
 }
 # What a card must say beyond its numbers.
-NOTES = {
-    "temc2-high": "**Not yet better than balanced.** Three levels at width 0.25 learn slowest "
-                  "(docs/reconstruction-design.md), and this run gained guides late; until its "
-                  "budget is spent the balanced model is the more accurate one (see the metrics).",
-}
+NOTES = {}
 # The cumulative training budgets of scripts/train-all (issue 15).
-BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8, "temc2-high": 4}
+BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
@@ -84,6 +81,19 @@ def still_rendering(ck, data) -> bool:
     where both are known)."""
     n = ck["train_scenes"]
     return data["train"] is not None and isinstance(n, int) and n < data["train"]
+
+
+def scenes_seen(ck, data) -> str:
+    """The card's account of the training scenes a run saw: the data set rendered while runs
+    trained, and a session on a fresh machine trains on the part rendered there."""
+    n, first, last = ck["train_scenes"], ck.get("first_train_scenes"), ck.get("session_scenes")
+    text = f"the run trained on {n} training scenes"
+    if isinstance(first, int) and isinstance(n, int) and first < n:
+        text = (f"the run's training set grew as the data set rendered, from {first} scenes at "
+                f"its first start to {n}")
+    if isinstance(last, int) and isinstance(n, int) and last < n:
+        text += f"; its last session trained on the {last} rendered on its machine"
+    return text + (" (the set was still rendering)" if still_rendering(ck, data) else "")
 
 
 def trained_for(ck) -> str:
@@ -123,9 +133,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"| parameters | {ck['params'][0]:,} convolution + {ck['params'][1]:,} batch-norm |",
         f"| file size | {size / 2**20:.1f} MiB |",
         f"| training run | training/runs/{run_name} |",
-        f"| data | {ck['dataset']}, as it stands now: {data['text']}; the run trained on "
-        f"{ck['train_scenes']} training scenes" + (" (the set was still rendering)" if still_rendering(ck, data) else "")
-        + " |",
+        f"| data | {ck['dataset']}, as it stands now: {data['text']}; {scenes_seen(ck, data)} |",
         f"| steps | {ck['train_steps']:,} (batch {hp['batch']}, random {hp['crop']}x{hp['crop']} crops, "
         "flips, rotations, aux dropout)"
         + (f"; {ck['skipped_steps']:,} skipped for a non-finite gradient (train.finite_step)"
@@ -242,6 +250,8 @@ def checkpoint_facts(ckpt_path, model, data_root) -> dict:
             "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(data_root or "unknown")),
             "params": count_params(model),
             "train_scenes": st.get("train_scenes", "an unrecorded number of"),
+            "first_train_scenes": st.get("first_train_scenes"),
+            "session_scenes": st.get("session_scenes"),
             "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0)}

@@ -2,7 +2,7 @@
 budget.
 
     python -m temc_train.train --data ../data/spectral-v1 --arch temc2 --width 0.125 \\
-        --run runs/temc2-w0.125 --hours 1.5
+        --run runs/temc2-w0.125-energy --hours 1.5
 
 The budget counts the CPU seconds (process time) spent in training steps, validation
 excluded, so every architecture gets the same compute even when runs share the machine or
@@ -13,7 +13,10 @@ means nothing, so there a step counts its wall seconds, kept apart in the checkp
 `--minutes` bounds this invocation's wall clock (from start, loading included; the loop
 stops after the first step past it, then validates and saves), whichever comes first.
 `--shard FILE` trains on a compact shard (`shard.py`) instead of a data set folder, for a
-machine without the renderer (`scripts/train-gpu`). Checkpoints hold CPU tensors, so they
+machine without the renderer. GPU runs (`scripts/train-gpu`, training/README.md) add
+`--sampler device` (batches drawn on the device, `device_batches.py`), `--amp bf16`,
+`--channels-last 1` and `--schedule onecycle`, and run under torchrun across GPUs and
+machines (`distributed.py`). Checkpoints hold CPU tensors, so they
 resume and export anywhere. Rerunning the same command resumes from
 RUN/checkpoint.pt (model, optimiser, step, clock and random state), saved every
 `--save-minutes` and at the end. RUN/log.csv records step, training seconds (what the
@@ -35,6 +38,7 @@ in float32, Adam's moments in bfloat16, and the moments dropped when the file wo
 
 import argparse
 import csv
+import math
 import os
 import time
 
@@ -42,6 +46,7 @@ import numpy as np
 import torch
 
 from . import data, shard
+from .distributed import Group
 from .loss import ALPHA, noise2noise_loss, training_loss
 from .models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params
 from .reconstruct import reconstruct
@@ -169,12 +174,26 @@ def finite_step(loss, model) -> bool:
     return bool(torch.isfinite(torch.stack([g.abs().max() for g in grads])).all()) if grads else True
 
 
-def learning_rate(a, trained_s: float) -> float:
-    """`--lr`, halved every `--lr-half-life` hours of the run's cumulative training time
-    (so the schedule survives resumes), down to LR_FLOOR of it; constant without a half-life."""
-    if not a.lr_half_life:
-        return a.lr
-    return a.lr * max(LR_FLOOR, 0.5 ** (trained_s / 3600.0 / a.lr_half_life))
+def learning_rate(a, trained_s: float, budget_s: float = 0.0, world: int = 1) -> float:
+    """The step's learning rate at `trained_s` of the run's cumulative training time.
+
+    halflife: `--lr`, halved every `--lr-half-life` hours (so the schedule survives
+    resumes), down to LR_FLOOR of it; constant without a half-life.
+    onecycle (GPU runs): the peak is `--lr` scaled by the square root of the global batch
+    over `--lr-batch`, the batch `--lr` was tuned for (Adam's square-root rule); it rises
+    linearly from 1/25 of the peak over the first `--warmup` of the budget `budget_s`, then
+    falls along a cosine to 1/1000 of it at the budget's end. Time, not steps, drives it, so
+    a resumed run continues the same curve on any device."""
+    if a.schedule == "halflife":
+        if not a.lr_half_life:
+            return a.lr
+        return a.lr * max(LR_FLOOR, 0.5 ** (trained_s / 3600.0 / a.lr_half_life))
+    peak = a.lr * ((a.batch * world) / (a.lr_batch or a.batch)) ** 0.5
+    t = min(max(trained_s / budget_s, 0.0), 1.0) if budget_s > 0 else 1.0
+    if t < a.warmup:
+        return peak * (1 / 25 + (1 - 1 / 25) * t / a.warmup)
+    fall = (t - a.warmup) / max(1.0 - a.warmup, 1e-9)
+    return peak * (1e-3 + (1 - 1e-3) * 0.5 * (1 + math.cos(math.pi * fall)))
 
 
 def pick_device(name: str) -> torch.device:
@@ -231,24 +250,112 @@ class Batches(torch.utils.data.IterableDataset):
             yield data.batch(self.scenes, rng, self.n, self.crop, target_spp=self.target_spp)
 
 
+class BatchSource:
+    """Where a run's batches come from (`--sampler`): numpy in this process (the random
+    stream is checkpointed, so a CPU run resumes exactly), numpy in `--workers` DataLoader
+    processes, or `device_batches.DeviceSet` on the training device (GPU runs: the scenes
+    live there and a batch is a few tensor operations). Scenes that land while the run
+    trains join through `refresh`."""
+
+    def __init__(self, a, scenes, device, rng, seed):
+        self.a, self.device, self.rng, self.scenes, self.loader = a, device, rng, scenes, None
+        if a.sampler == "device":
+            if a.target_spp:
+                raise SystemExit("--sampler device does not do Noise2Noise targets (--target-spp)")
+            from .device_batches import DeviceSet
+
+            self.set = DeviceSet(device)
+            self.set.add(scenes)
+            self.gen = torch.Generator(device).manual_seed(int(np.random.SeedSequence(seed).generate_state(1)[0]))
+        elif a.workers > 0:
+            self._start_workers(seed)
+
+    def _start_workers(self, seed):
+        dl = torch.utils.data.DataLoader(Batches(self.scenes, self.a.batch, self.a.crop, seed, self.a.target_spp),
+                                         batch_size=None, num_workers=self.a.workers,
+                                         pin_memory=self.device.type == "cuda", prefetch_factor=4,
+                                         persistent_workers=False)
+        self.loader = iter(dl)
+
+    def next(self) -> list:
+        if self.a.sampler == "device":
+            return self.set.batch(self.a.batch, self.a.crop, self.gen)
+        arrays = (data.batch(self.scenes, self.rng, self.a.batch, self.a.crop, target_spp=self.a.target_spp or None)
+                  if self.loader is None else next(self.loader))
+        return [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(self.device, non_blocking=True)
+                for v in arrays]
+
+    def refresh(self, seed) -> None:
+        """Adds the data set's training scenes finished since the last call."""
+        n = len(self.scenes)
+        self.scenes = data.refresh_split(self.a.data, "train", self.scenes, self.a.target_spp)
+        if len(self.scenes) == n:
+            return
+        if self.a.sampler == "device":
+            self.set.add(self.scenes[n:])
+        elif self.loader is not None:
+            self._start_workers(seed)
+
+
+def load_data(a):
+    """(training scenes, validation scenes, data set name, source) of `--data` or `--shard`."""
+    if a.shard:
+        train_scenes, val_scenes = shard.load(a.shard)
+        return train_scenes, val_scenes, shard.read_manifest(a.shard)["dataset"], a.shard
+    return (data.load_split(a.data, "train", a.target_spp), data.load_split(a.data, "val"),
+            os.path.basename(os.path.normpath(a.data)), a.data)
+
+
+def resume_model(a, model, ckpt_path, rs):
+    """Loads RUN/checkpoint.pt into `model` when there is one, adding guide channels or
+    pyramid levels the command asks for; returns the checkpoint (None for a new run)."""
+    if not os.path.exists(ckpt_path):
+        return None
+    ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+    held_recon = checkpoint_recon(ck)
+    upgrade = a.guide and not held_recon["guide"]
+    if upgrade:
+        held_recon["guide"] = True
+    grow = a.levels > held_recon["levels"]
+    if grow:
+        held_recon["levels"] = a.levels
+    held = (ck["arch"], ck["width"], held_recon)
+    if held != (a.arch, a.width, rs):
+        raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
+    if upgrade:
+        add_guide(model, ck)
+        ck["state"]["guide_from_step"] = ck["state"]["step"]
+        print(f"{ckpt_path}: adding the guide channels", flush=True)
+    elif grow:
+        from_levels = checkpoint_recon(ck)["levels"]
+        add_levels(model, ck)
+        ck["state"]["levels_from"] = [ck["state"]["step"], from_levels]
+        print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
+    else:
+        model.load_state_dict(ck["model"])
+    return ck
+
+
+def hparams(a, world: int) -> dict:
+    """The recipe, as the model card reads it from the checkpoint."""
+    return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
+            "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
+            "mean_weight": a.mean_weight, "target_spp": a.target_spp, "loss": a.loss,
+            "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
+            "warmup": a.warmup, "processes": world}
+
+
 def train(a) -> dict:
     start = time.monotonic()
     torch.set_num_threads(a.threads)
-    device = pick_device(a.device)
+    group = Group()
+    device = group.start(pick_device(a.device))
     cuda = device.type == "cuda"
     if cuda:
         torch.backends.cudnn.benchmark = True
     os.makedirs(a.run, exist_ok=True)
     ckpt_path = os.path.join(a.run, "checkpoint.pt")
-    if a.shard:
-        train_scenes, val_scenes = shard.load(a.shard)
-        dataset = shard.read_manifest(a.shard)["dataset"]
-        source = a.shard
-    else:
-        train_scenes = data.load_split(a.data, "train", a.target_spp)
-        val_scenes = data.load_split(a.data, "val")
-        dataset = os.path.basename(os.path.normpath(a.data))
-        source = a.data
+    train_scenes, val_scenes, dataset, source = load_data(a)
     if not train_scenes:
         raise SystemExit(f"{source}: no finished training scenes yet")
     val = data.validation_set(val_scenes or train_scenes[:2], a.crop)
@@ -257,67 +364,42 @@ def train(a) -> dict:
     model = build(a.arch, a.width, a.levels, a.kernel, a.split, bool(a.guide))
     state = {"step": 0, "train_s": 0.0, "gpu_seconds": 0.0,
              "rng": np.random.default_rng(a.seed).bit_generator.state}
-    if os.path.exists(ckpt_path):
-        ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        held_recon = checkpoint_recon(ck)
-        upgrade = a.guide and not held_recon["guide"]
-        if upgrade:
-            held_recon["guide"] = True
-        grow = a.levels > held_recon["levels"]
-        if grow:
-            held_recon["levels"] = a.levels
-        held = (ck["arch"], ck["width"], held_recon)
-        if held != (a.arch, a.width, rs):
-            raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
-        if upgrade:
-            add_guide(model, ck)
-            ck["state"]["guide_from_step"] = ck["state"]["step"]
-            print(f"{ckpt_path}: adding the guide channels", flush=True)
-        elif grow:
-            from_levels = checkpoint_recon(ck)["levels"]
-            add_levels(model, ck)
-            ck["state"]["levels_from"] = [ck["state"]["step"], from_levels]
-            print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
-        else:
-            model.load_state_dict(ck["model"])
-    model.to(device)
+    ck = resume_model(a, model, ckpt_path, rs)
+    model.to(device, memory_format=torch.channels_last if a.channels_last else torch.contiguous_format)
     opt = torch.optim.Adam(model.parameters(), lr=a.lr)
-    if os.path.exists(ckpt_path):
+    if ck is not None:
         if ck.get("opt") is not None:
             restore_optimizer_state(opt, ck["opt"])  # moves the moments to the parameters' device
         state = ck["state"]
         state.setdefault("gpu_seconds", 0.0)
         if a.mean_weight and not state.get("hparams", {}).get("mean_weight"):
             state["mean_from_step"] = state["step"]  # the card says when the term joined
-        print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
-              f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
+        if group.leader:
+            print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
+                  f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
         del ck
+    net = group.wrap(model, device)
     rng = np.random.default_rng()
     rng.bit_generator.state = state["rng"]
-    log, w = open_log(os.path.join(a.run, "log.csv"))
+    if group.rank:  # every process its own crops
+        rng = np.random.default_rng([a.seed, state["step"], group.rank])
+    log, w = open_log(os.path.join(a.run, "log.csv")) if group.leader else (None, None)
     budget = a.hours * 3600.0
     wall = float("inf") if a.minutes is None else a.minutes * 60.0
     used = lambda: state["train_s"] + state["gpu_seconds"]  # noqa: E731
     last_save = last_val = time.monotonic()
     ema = None
-    loader = None
-
-    def batches(scenes):
-        if a.workers <= 0:
-            return None
-        dl = torch.utils.data.DataLoader(Batches(scenes, a.batch, a.crop, [a.seed, state["step"]], a.target_spp),
-                                         batch_size=None, num_workers=a.workers, pin_memory=cuda,
-                                         prefetch_factor=4, persistent_workers=False)
-        return iter(dl)
+    amp = torch.autocast(device.type, dtype=torch.bfloat16, enabled=a.amp == "bf16")
+    layout = torch.channels_last if a.channels_last else torch.contiguous_format
 
     def checkpoint():
         state["rng"] = rng.bit_generator.state
-        state["train_scenes"] = len(train_scenes)  # the model card says what the run saw
-        # The model card reads the recipe from here, not from constants that could drift.
-        state["hparams"] = {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch,
-                            "crop": a.crop, "threads": a.threads,
-                            "alpha": a.alpha, "rel_weight": a.rel_weight,
-                            "mean_weight": a.mean_weight, "target_spp": a.target_spp, "loss": a.loss}
+        # The model card says what the run saw. Sessions on fresh machines train on the
+        # part of the set rendered there, so the count kept is the largest set seen at once.
+        prior = state.get("train_scenes")
+        state["train_scenes"] = max(len(batches.scenes), prior if isinstance(prior, int) else 0)
+        state["session_scenes"] = len(batches.scenes)
+        state["hparams"] = hparams(a, group.world)
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
@@ -328,22 +410,16 @@ def train(a) -> dict:
             ck["opt"] = None
             _save(ck, ckpt_path)
 
-    if state["step"] == 0:
-        w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, a.rel_weight, device=device):.6f}", device.type])
-        log.flush()
-    model.train()
-    loader = batches(train_scenes)
-    print(f"training on {device.type} ({len(train_scenes)} scenes from {source})", flush=True)
-    while (used() < budget and state["step"] < a.max_steps
-           and time.monotonic() - start < wall):
-        t0 = time.monotonic() if cuda else time.process_time()
-        for g in opt.param_groups:
-            g["lr"] = learning_rate(a, used())
-        arrays = (data.batch(train_scenes, rng, a.batch, a.crop, target_spp=a.target_spp or None)
-                  if loader is None else next(loader))
-        xs = [(torch.from_numpy(v) if isinstance(v, np.ndarray) else v).to(device, non_blocking=True)
-              for v in arrays]
-        out = denoise(model, xs, rs)
+    def step():
+        """One optimiser step; returns its loss."""
+        xs = batches.next()
+        xs[:3] = [x.contiguous(memory_format=layout) for x in xs[:3]]
+        with amp:
+            filters = net(*xs[:3])
+        # The reconstruction and the loss stay in float32: they divide and take powers of
+        # radiance that bfloat16's 8 bits would blur.
+        out = reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
+                          rs["eps"], guide=rs.get("guide", False))
         loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
                 else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
         opt.zero_grad(set_to_none=True)
@@ -356,37 +432,67 @@ def train(a) -> dict:
             state["skipped_steps"] = state.get("skipped_steps", 0) + 1
             print(f"step {state['step']}: non-finite loss or gradient, skipped "
                   f"({state['skipped_steps']} so far)", flush=True)
-        l = float(loss.detach())  # waits for the device: the step's time is all in
+        return float(loss.detach())  # waits for the device: the step's time is all in
+
+    if state["step"] == 0:
+        state["first_train_scenes"] = len(train_scenes)
+        if group.leader:
+            w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, a.rel_weight, device=device):.6f}", device.type])
+            log.flush()
+    model.train()
+    batches = BatchSource(a, train_scenes, device, rng, [a.seed, state["step"], group.rank])
+    if group.leader:
+        print(f"training on {device.type} x {group.world} ({len(train_scenes)} scenes from {source}, "
+              f"sampler {a.sampler})", flush=True)
+    done = used() >= budget or state["step"] >= a.max_steps
+    while not group.any(done, device):
+        t0 = time.monotonic() if cuda else time.process_time()
+        for g in opt.param_groups:
+            g["lr"] = learning_rate(a, used(), budget, group.world)
+        loss = step()
+        # Device seconds of every process: a budget is compute, however it is split.
         if cuda:
-            state["gpu_seconds"] += time.monotonic() - t0
+            state["gpu_seconds"] += (time.monotonic() - t0) * group.world
         else:
-            state["train_s"] += time.process_time() - t0
+            state["train_s"] += (time.process_time() - t0) * group.world
         state["step"] += 1
-        ema = l if ema is None else 0.98 * ema + 0.02 * l
+        ema = loss if ema is None else 0.98 * ema + 0.02 * loss
         now = time.monotonic()
         done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
         if now - last_val >= a.val_minutes * 60 or done:
-            v = validate(model, val, a.alpha, rs, a.rel_weight, device=device)
             if not a.shard:
-                n = len(train_scenes)
-                train_scenes = data.refresh_split(a.data, "train", train_scenes, a.target_spp)
-                if loader is not None and len(train_scenes) != n:
-                    loader = batches(train_scenes)
-            w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
-            log.flush()
-            print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
-                  f"train {ema:.4f}  val {v:.4f}", flush=True)
+                batches.refresh([a.seed, state["step"], group.rank])
+            if group.leader:
+                v = validate(model, val, a.alpha, rs, a.rel_weight, device=device)
+                w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
+                log.flush()
+                print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
+                      f"train {ema:.4f}  val {v:.4f}  lr {opt.param_groups[0]['lr']:.2e}", flush=True)
             last_val = time.monotonic()
-        if now - last_save >= a.save_minutes * 60 or done:
+        if group.leader and (now - last_save >= a.save_minutes * 60 or done):
             checkpoint()
             last_save = time.monotonic()
-    checkpoint()
-    log.close()
     final = {"model": cpu_state(model.state_dict()), "arch": a.arch, "width": a.width, "recon": rs,
              "dataset": dataset, "train_steps": state["step"], "train_seconds": state["train_s"],
              "gpu_seconds": state["gpu_seconds"], "params": count_params(model)}
-    _save(final, os.path.join(a.run, "model.pt"))
+    if group.leader:
+        checkpoint()
+        log.close()
+        _save(final, os.path.join(a.run, "model.pt"))
+        if a.export:
+            export_onnx(model, final, a.export)
+    group.barrier()
+    group.stop()
     return final
+
+
+def export_onnx(model, final: dict, path: str) -> None:
+    """The run's ONNX file, checked against onnxruntime (export.py)."""
+    from .export import export, metadata
+
+    meta = metadata(final["arch"], final["width"], final["recon"], final["dataset"], final["train_steps"])
+    diff = export(model.cpu().float(), path, meta)
+    print(f"exported {path} (onnxruntime vs PyTorch {diff:.1e})", flush=True)
 
 
 def main(argv=None):
@@ -406,7 +512,9 @@ def main(argv=None):
     ap.add_argument("--guide", type=int, choices=(0, 1), default=0,
                     help="predict a guide per filter whose differences reject taps (the range "
                          "term); a run trained without it gains it on resume")
-    ap.add_argument("--run", required=True, help="folder for checkpoints and the log")
+    ap.add_argument("--run", "--run-dir", dest="run", required=True,
+                    help="folder for checkpoints and the log (--run-dir: the same, for torchrun, "
+                         "whose own parser takes --run for an abbreviation of its --run-path)")
     ap.add_argument("--hours", type=float, default=1.0,
                     help="cumulative training budget: CPU hours spent in steps, plus wall hours of "
                          "steps on CUDA")
@@ -440,6 +548,20 @@ def main(argv=None):
                     help="mix: the paper's L1 + MS-SSIM on PQ (loss.training_loss); relmse: "
                          "loss.noise2noise_loss, unbiased under zero-mean target noise. "
                          "Default: relmse with --target-spp, else mix")
+    ap.add_argument("--sampler", choices=("numpy", "device"), default="numpy",
+                    help="numpy: data.make_sample's crops (here or in --workers); device: "
+                         "device_batches.DeviceSet, the scenes on the training device (GPU runs)")
+    ap.add_argument("--amp", choices=("off", "bf16"), default="off",
+                    help="bf16: the network under bfloat16 autocast (reconstruction and loss stay float32)")
+    ap.add_argument("--channels-last", type=int, choices=(0, 1), default=0,
+                    help="the network's weights and inputs in channels-last layout (faster on GPUs)")
+    ap.add_argument("--schedule", choices=("halflife", "onecycle"), default="halflife",
+                    help="learning-rate schedule (see learning_rate)")
+    ap.add_argument("--lr-batch", type=int, default=0,
+                    help="onecycle: the global batch --lr was tuned for (0: --batch, no scaling)")
+    ap.add_argument("--warmup", type=float, default=0.05,
+                    help="onecycle: the share of the budget (--hours) spent warming up")
+    ap.add_argument("--export", help="also write the final model as ONNX here (export.py's checks)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--val-minutes", type=float, default=5.0)

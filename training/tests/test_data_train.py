@@ -239,12 +239,22 @@ def test_noise2noise_trains_on_the_reference_prefix(dataset, tmp_path):
 
 def test_the_learning_rate_halves_with_training_time():
     class A:
-        lr, lr_half_life = 1e-3, 2.0
+        lr, lr_half_life, schedule = 1e-3, 2.0, "halflife"
     assert train.learning_rate(A, 0.0) == 1e-3
     assert abs(train.learning_rate(A, 2 * 3600.0) - 5e-4) < 1e-12
     assert train.learning_rate(A, 1e9) == 1e-3 * train.LR_FLOOR
     A.lr_half_life = 0.0
     assert train.learning_rate(A, 1e9) == 1e-3
+
+
+def test_one_cycle_scales_with_the_global_batch_warms_up_and_anneals():
+    class A:
+        lr, schedule, batch, lr_batch, warmup = 1e-3, "onecycle", 64, 16, 0.1
+    peak = 1e-3 * (64 * 4 / 16) ** 0.5  # four processes: a global batch of 256
+    lr = lambda t: train.learning_rate(A, t, 1000.0, world=4)  # noqa: E731
+    assert abs(lr(0.0) - peak / 25) < 1e-12 and abs(lr(100.0) - peak) < 1e-12
+    assert lr(50.0) < lr(100.0) and lr(550.0) < lr(300.0) < lr(100.0)
+    assert abs(lr(1000.0) - peak * 1e-3) < 1e-12 and lr(5000.0) == lr(1000.0)
 
 
 def test_a_checkpoint_without_recon_loads_alike_in_train_and_export(dataset, tmp_path):

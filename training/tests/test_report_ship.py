@@ -292,6 +292,16 @@ def test_card_reports_threads_gpu_time_and_old_recipes():
     assert not ship.still_rendering({"train_scenes": "an unrecorded number of"}, {"train": 7})
 
 
+def test_card_says_how_the_training_set_grew_and_what_the_last_session_had():
+    grew = ship.scenes_seen({"train_scenes": 40, "first_train_scenes": 3}, {"train": 40})
+    assert grew == "the run's training set grew as the data set rendered, from 3 scenes at its first start to 40"
+    assert ship.scenes_seen({"train_scenes": 40, "first_train_scenes": 40}, {"train": 40}) == \
+        "the run trained on 40 training scenes"
+    part = ship.scenes_seen({"train_scenes": 779, "session_scenes": 120}, {"train": 779})
+    assert part.endswith("its last session trained on the 120 rendered on its machine")
+    assert ship.scenes_seen({"train_scenes": 40}, {"train": 50}).endswith("(the set was still rendering)")
+
+
 def test_report_refuses_a_mock_matplotlib(monkeypatch):
     """colour-science leaves a MagicMock in sys.modules["matplotlib"] when matplotlib is
     missing (issue 34): the report must say so, not draw with the mock."""

@@ -7,6 +7,8 @@
 //! ```text
 //! DIR/dataset.json                 the settings; a resumed run must match them
 //! DIR/manifest.json                every finished scene, its files and seconds, totals
+//! DIR/manifest.part-I-of-N.json    the same for part I of N (`--part`, see `part.rs`),
+//!                                  until `merge-manifests` joins the parts into it
 //! DIR/{train,val,test}/NAME/scene.txt   the scene file (re-renderable)
 //! DIR/{train,val,test}/NAME/spp0004.exr ... one multi-layer EXR per noisy spp
 //! DIR/{train,val,test}/NAME/ref.exr      the reference (independent seed)
@@ -26,8 +28,10 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use temc_render::description::{format, generate, held_out, named};
-use temc_render::output::write_bytes_atomic;
+use temc_render::output::{write_bytes_atomic, write_bytes_atomic_tagged};
 use temc_render::{render_progressive, Settings};
+
+use crate::part::Part;
 
 /// `temc-render dataset`'s options.
 #[derive(clap::Args)]
@@ -63,6 +67,12 @@ pub struct Args {
     /// set, its scenes and their splits do not depend on it.
     #[arg(long, default_value_t = 0)]
     start: usize,
+    /// Render only part I of N (1-based: 1/N to N/N) of the set, for a cluster: every
+    /// N-th scene of the set's fixed order, each exactly as a whole run renders it, listed
+    /// in `manifest.part-I-of-N.json`. Parts may share one --out; when all have finished,
+    /// `temc-render merge-manifests --out DIR` writes the set's manifest.json.
+    #[arg(long, value_name = "I/N")]
+    part: Option<Part>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -81,12 +91,13 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         ref_prefix_spp: a.ref_prefix_spp,
         start: a.start,
     };
-    let (size, out) = (a.size, a.out);
+    let (size, out, part) = (a.size, a.out, a.part);
     let t = Instant::now();
     let b = crate::bar(size as u64);
     let m = run(
         &opts,
         &out,
+        part,
         &|line| {
             if b.is_hidden() {
                 eprintln!("{line}");
@@ -99,8 +110,9 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
     )?;
     b.finish_and_clear();
     let n = m.scenes.len().max(1) as f64;
+    let which = part.map_or(String::new(), |p| format!("part {p}: "));
     eprintln!(
-        "temc-render: {} scenes in {} ({:.0} s this run). Render cost: noisy {:.0} s ({:.1} s/scene), references {:.0} s ({:.1} s/scene).",
+        "temc-render: {which}{} scenes in {} ({:.0} s this run). Render cost: noisy {:.0} s ({:.1} s/scene), references {:.0} s ({:.1} s/scene).",
         m.scenes.len(),
         out.display(),
         t.elapsed().as_secs_f64(),
@@ -109,6 +121,13 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         m.seconds_reference,
         m.seconds_reference / n
     );
+    if let Some(p) = part {
+        eprintln!(
+            "temc-render: once every part of {} has finished: temc-render merge-manifests --out {}",
+            p.count,
+            out.display()
+        );
+    }
     Ok(())
 }
 
@@ -179,6 +198,57 @@ pub struct Manifest {
     pub seconds_noisy: f64,
     /// Total render seconds, references.
     pub seconds_reference: f64,
+    /// In a part's manifest (`--part`), which part; absent from the whole set's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub part: Option<PartOf>,
+}
+
+/// Where a part's manifest belongs: what `merge-manifests` needs that [`Options`] does not
+/// record.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PartOf {
+    /// The part, 1..=count.
+    pub index: usize,
+    /// The number of parts.
+    pub count: usize,
+    /// The `--start` it was rendered with: the merged manifest lists the scenes in the
+    /// order a whole run with that start would.
+    pub start: usize,
+}
+
+impl Manifest {
+    /// The manifest of `records`, with their total seconds.
+    pub fn new(opts: &Options, records: Vec<Record>, part: Option<PartOf>) -> Manifest {
+        Manifest {
+            options: opts.clone(),
+            layers: temc_color::layers::channel_names(),
+            seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
+            seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
+            scenes: records,
+            part,
+        }
+    }
+
+    /// Writes it as `name` in `out`.
+    pub fn write(&self, out: &Path, name: &str) -> Result<(), String> {
+        write_bytes_atomic(
+            &out.join(name),
+            serde_json::to_string_pretty(self).unwrap().as_bytes(),
+        )
+    }
+}
+
+/// One scene of the set: what to render and where.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Job {
+    /// Its place in the set's fixed order (the order at `--start 0`), which decides its part.
+    pub index: usize,
+    /// Scene name (directory name).
+    pub name: String,
+    /// "train", "val" or "test".
+    pub split: &'static str,
+    /// The scene file.
+    pub text: String,
 }
 
 /// Which split a generated scene belongs to: 80 % train, 10 % validation, 10 % test,
@@ -193,10 +263,12 @@ pub fn split_of(index: usize) -> &'static str {
     }
 }
 
-/// Renders the data set; `log` gets one line per scene. Returns the manifest.
+/// Renders the data set, or with `part` only that part of it; `log` gets one line per
+/// scene. Returns the manifest (the part's, for a part).
 pub fn run(
     opts: &Options,
     out: &Path,
+    part: Option<Part>,
     log: &dyn Fn(&str),
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
@@ -205,12 +277,14 @@ pub fn run(
         return Err("need --spp values > 0, --ref-spp > 0 and --size >= 8".into());
     }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    check_settings(opts, out)?;
-    let jobs = jobs(opts);
+    check_settings(opts, out, part)?;
+    let jobs: Vec<Job> = jobs(opts)
+        .into_iter()
+        .filter(|j| part.is_none_or(|p| p.contains(j.index)))
+        .collect();
     // Every finished scene is in the manifest before the first new one renders: training
     // reads the manifest while the set grows, and a resumed set must not look empty.
-    let done =
-        |(name, split, _): &(String, &str, String)| out.join(split).join(name).join("done.json");
+    let done = |job: &Job| out.join(job.split).join(&job.name).join("done.json");
     let finished = |job| {
         std::fs::read_to_string(done(job))
             .ok()
@@ -224,30 +298,35 @@ pub fn run(
             None => todo.push(k),
         }
     }
-    write_manifest(opts, out, &records)?;
+    let write = |records: &[Record]| write_manifest(opts, out, part, records);
+    write(&records)?;
     for k in todo {
-        let (name, split, _) = &jobs[k];
-        let r = render_scene(opts, out, &jobs[k], progress, cancel)?;
+        let job = &jobs[k];
+        let r = render_scene(opts, out, job, progress, cancel)?;
         write_bytes_atomic(
-            &done(&jobs[k]),
+            &done(job),
             serde_json::to_string_pretty(&r).unwrap().as_bytes(),
         )?;
         log(&format!(
-            "{}/{}: {split}/{name}: noisy {:.1} s, reference {:.1} s",
+            "{}/{}: {}/{}: noisy {:.1} s, reference {:.1} s",
             k + 1,
             jobs.len(),
+            job.split,
+            job.name,
             r.seconds_noisy,
             r.seconds_reference
         ));
         records.push(r);
-        write_manifest(opts, out, &records)?;
+        write(&records)?;
     }
-    write_manifest(opts, out, &records)
+    write(&records)
 }
 
 /// Refuses to resume a data set made with other settings (the scene count may grow), then
-/// records these.
-fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
+/// records these. Every part of a cluster render writes the same settings into the shared
+/// folder, so a part's temporary file carries its part: process ids on different
+/// machines may coincide.
+fn check_settings(opts: &Options, out: &Path, part: Option<Part>) -> Result<(), String> {
     let settings_path = out.join("dataset.json");
     if settings_path.exists() {
         let old: Options = serde_json::from_str(
@@ -267,21 +346,35 @@ fn check_settings(opts: &Options, out: &Path) -> Result<(), String> {
             ));
         }
     }
-    write_bytes_atomic(
+    let tag = part.map_or(String::new(), |p| {
+        format!("part-{}-of-{}", p.index, p.count)
+    });
+    write_bytes_atomic_tagged(
         &settings_path,
+        &tag,
         serde_json::to_string_pretty(opts).unwrap().as_bytes(),
     )
 }
 
-/// The scenes to render, in order: (name, split, scene text). The named stress scenes
-/// come first, so the test split's hard cases are ready early, then the held-out families'
-/// scenes; then the generated ones from index `start`, wrapping.
-fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
+/// The scenes to render, in order. The named stress scenes come first, so the test
+/// split's hard cases are ready early, then the held-out families' scenes; then the
+/// generated ones from index `start`, wrapping. A scene's [`Job::index`] is its place at
+/// `start` 0.
+pub fn jobs(opts: &Options) -> Vec<Job> {
     let mut jobs = Vec::new();
+    let mut push = |name: String, split, text: String| {
+        let index = jobs.len();
+        jobs.push(Job {
+            index,
+            name,
+            split,
+            text,
+        });
+    };
     if opts.named {
         for (name, _, text) in named::NAMED {
             if name != "furnace" {
-                jobs.push((format!("named-{name}"), "test", text.to_string()));
+                push(format!("named-{name}"), "test", text.to_string());
             }
         }
     }
@@ -289,18 +382,20 @@ fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
         for k in 0..opts.holdout {
             let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
             let text = held_out::scene_text(family, seed).expect("a listed family");
-            jobs.push((format!("holdout-{family}-{k:03}"), "test", text));
+            push(format!("holdout-{family}-{k:03}"), "test", text);
         }
     }
-    let start = opts.start.checked_rem(opts.count).unwrap_or(0);
-    for i in (start..opts.count).chain(0..start) {
+    for i in 0..opts.count {
         let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
-        jobs.push((
+        push(
             format!("scene-{i:05}"),
             split_of(i),
             generate::scene_text(seed),
-        ));
+        );
     }
+    // The generated scenes come last, so rotating the tail rotates them alone.
+    let generated = jobs.len() - opts.count;
+    jobs[generated..].rotate_left(opts.start.checked_rem(opts.count).unwrap_or(0));
     jobs
 }
 
@@ -309,7 +404,9 @@ fn jobs(opts: &Options) -> Vec<(String, &'static str, String)> {
 fn render_scene(
     opts: &Options,
     out: &Path,
-    (name, split, text): &(String, &'static str, String),
+    Job {
+        name, split, text, ..
+    }: &Job,
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<Record, String> {
@@ -398,17 +495,23 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
-fn write_manifest(opts: &Options, out: &Path, records: &[Record]) -> Result<Manifest, String> {
-    let m = Manifest {
-        options: opts.clone(),
-        layers: temc_color::layers::channel_names(),
-        scenes: records.to_vec(),
-        seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
-        seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
-    };
-    write_bytes_atomic(
-        &out.join("manifest.json"),
-        serde_json::to_string_pretty(&m).unwrap().as_bytes(),
+/// Writes the manifest of `records`: `manifest.json`, or for a part its own file.
+fn write_manifest(
+    opts: &Options,
+    out: &Path,
+    part: Option<Part>,
+    records: &[Record],
+) -> Result<Manifest, String> {
+    let part_of = part.map(|p| PartOf {
+        index: p.index,
+        count: p.count,
+        // As `jobs` takes it, so equal orders compare equal.
+        start: opts.start.checked_rem(opts.count).unwrap_or(0),
+    });
+    let m = Manifest::new(opts, records.to_vec(), part_of);
+    m.write(
+        out,
+        &part.map_or("manifest.json".into(), |p| p.manifest_name()),
     )?;
     Ok(m)
 }
@@ -436,11 +539,55 @@ mod tests {
     fn start_rotates_the_order_not_the_set() {
         let opts = |start| tiny(7, 0, start);
         let (a, b) = (jobs(&opts(0)), jobs(&opts(12)));
-        assert_eq!(b[0].0, "scene-00005");
-        assert_eq!(b[2].0, "scene-00000");
+        assert_eq!(b[0].name, "scene-00005");
+        assert_eq!(b[2].name, "scene-00000");
         let mut sorted = b.clone();
-        sorted.sort();
+        sorted.sort_by_key(|j| j.index);
         assert_eq!(sorted, a);
+    }
+
+    #[test]
+    fn parts_split_the_set_evenly_and_keep_its_order() {
+        let opts = Options {
+            named: true,
+            ..tiny(11, 2, 4)
+        };
+        let all = jobs(&opts);
+        let n = 3;
+        let parts: Vec<Vec<Job>> = (1..=n)
+            .map(|i| {
+                let p = Part::new(i, n).unwrap();
+                all.iter()
+                    .filter(|j| p.contains(j.index))
+                    .cloned()
+                    .collect()
+            })
+            .collect();
+        let sizes: Vec<usize> = parts.iter().map(Vec::len).collect();
+        assert!(
+            sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1,
+            "{sizes:?}"
+        );
+        // Every kind of scene lands in every part.
+        for part in &parts {
+            for kind in ["named-", "holdout-", "scene-"] {
+                assert!(part.iter().any(|j| j.name.starts_with(kind)), "{kind}");
+            }
+        }
+        let mut joined: Vec<Job> = parts.concat();
+        joined.sort_by_key(|j| all.iter().position(|a| a.name == j.name));
+        assert_eq!(joined, all);
+    }
+
+    #[test]
+    fn a_generated_scene_keeps_its_part_when_the_set_grows() {
+        let index = |count| {
+            jobs(&tiny(count, 2, 0))
+                .into_iter()
+                .find(|j| j.name == "scene-00003")
+                .map(|j| j.index)
+        };
+        assert_eq!(index(5), index(50));
     }
 
     #[test]
@@ -449,11 +596,26 @@ mod tests {
         let _ = std::fs::remove_dir_all(&out);
         let opts = |count, start| tiny(count, 0, start);
         let (quiet, none) = (|_: &str| {}, |_: usize| {});
-        run(&opts(2, 0), &out, &quiet, &none, &AtomicBool::new(false)).unwrap();
+        run(
+            &opts(2, 0),
+            &out,
+            None,
+            &quiet,
+            &none,
+            &AtomicBool::new(false),
+        )
+        .unwrap();
         std::fs::remove_file(out.join("manifest.json")).unwrap();
         // Grown by one scene, rendered first and cancelled at once: the two finished
         // scenes must still be in the manifest (they come after the new one in order).
-        let err = run(&opts(3, 2), &out, &quiet, &none, &AtomicBool::new(true));
+        let err = run(
+            &opts(3, 2),
+            &out,
+            None,
+            &quiet,
+            &none,
+            &AtomicBool::new(true),
+        );
         assert!(err.is_err());
         let m: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap())
@@ -473,9 +635,9 @@ mod tests {
         let opts = tiny(20, 2, 0);
         let held: Vec<_> = jobs(&opts)
             .into_iter()
-            .filter(|(name, ..)| name.starts_with("holdout-"))
+            .filter(|j| j.name.starts_with("holdout-"))
             .collect();
-        let names: Vec<_> = held.iter().map(|(n, ..)| n.as_str()).collect();
+        let names: Vec<_> = held.iter().map(|j| j.name.as_str()).collect();
         assert_eq!(
             names,
             [
@@ -485,7 +647,7 @@ mod tests {
                 "holdout-corridor-001"
             ]
         );
-        assert!(held.iter().all(|(_, split, _)| *split == "test"));
+        assert!(held.iter().all(|j| j.split == "test"));
     }
 
     #[test]

@@ -1,12 +1,18 @@
 //! `temc-render`: render scenes to multi-layer EXR, generate random scenes, render data
 //! sets, run the denoising demo, and benchmark the renderer.
 //!
-//! The applications are modules of this binary, not of the tracer library: [`dataset`],
-//! [`demo`] (the one that needs the denoiser, temc) and [`bench`].
+//! The applications are modules of this binary, not of the tracer library: [`dataset`]
+//! (with [`part`], the partition for clusters, and [`merge`], which joins the parts),
+//! `demo` and `bench` (the two that need the denoiser, temc: feature `denoise`, on by
+//! default).
 
+#[cfg(feature = "denoise")]
 mod bench;
 mod dataset;
+#[cfg(feature = "denoise")]
 mod demo;
+mod merge;
+mod part;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -39,6 +45,7 @@ enum Command {
     Render(RenderArgs),
     /// The whole job on defaults: render a spectral scene at low spp and a reference,
     /// denoise with temc's built-in model, write EXR + PNG, print error and time.
+    #[cfg(feature = "denoise")]
     Demo(demo::Args),
     /// List the named scenes.
     Scenes,
@@ -52,10 +59,15 @@ enum Command {
         #[arg(long)]
         family: Option<String>,
     },
-    /// Render a data set of noisy/reference pairs (resumable).
+    /// Render a data set of noisy/reference pairs (resumable), or with --part I/N one part
+    /// of it, for a cluster.
     Dataset(dataset::Args),
+    /// Join the manifests of a data set's parts (dataset --part I/N) into its
+    /// manifest.json, once every part has finished.
+    MergeManifests(merge::Args),
     /// Time the specialised kernels against the general one on every named scene, and
     /// the throughput on the Cornell box; writes a Markdown report.
+    #[cfg(feature = "denoise")]
     Bench(bench::Args),
 }
 
@@ -148,8 +160,11 @@ fn run(command: Command, cancel: &AtomicBool) -> Result<(), String> {
             Ok(())
         }
         Command::Render(args) => render(args, cancel),
+        #[cfg(feature = "denoise")]
         Command::Demo(args) => demo::main(args),
         Command::Dataset(args) => dataset::main(args, cancel),
+        Command::MergeManifests(args) => merge::main(args),
+        #[cfg(feature = "denoise")]
         Command::Bench(args) => bench::main(args, cancel),
     }
 }
