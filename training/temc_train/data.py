@@ -168,6 +168,34 @@ def refresh_split(root: str, split: str, scenes: list, prefix_spp=None) -> list:
     return scenes + new
 
 
+class SceneLoader:
+    """A split's scenes as they finish, read in worker processes: on a GPU machine that
+    renders while it trains, reading a scene's EXRs (exr_numpy, about a quarter second)
+    on the training thread would leave the GPU idle. `poll` hands back the scenes read
+    since the last call and never waits. Workers are spawned, not forked (the parent
+    holds CUDA state)."""
+
+    def __init__(self, root: str, split: str, have, workers: int = 2):
+        import concurrent.futures
+        import multiprocessing
+
+        self.root, self.split, self.seen = root, split, set(have)
+        self.pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+        self.pending = []
+
+    def poll(self) -> list:
+        for r in _records(self.root, self.split):
+            if r["name"] not in self.seen:
+                self.seen.add(r["name"])
+                self.pending.append(self.pool.submit(Scene, self.root, r))
+        done = [f for f in self.pending if f.done()]
+        self.pending = [f for f in self.pending if not f.done()]
+        return [f.result() for f in done]
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=False, cancel_futures=True)
+
+
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
     q *= np.sign(np.diag(r))

@@ -69,11 +69,10 @@ def _rle(data: bytes) -> bytes:
 
 def _unpredict(raw: bytes) -> bytes:
     """Undoes OpenEXR's byte predictor and the split into two halves (RLE and ZIP)."""
-    t = np.frombuffer(raw, np.uint8).astype(np.int64)
+    t = np.frombuffer(raw, np.uint8).copy()
     if t.size:
-        t[1:] -= 128
-        t = np.cumsum(t) & 0xFF
-    t = t.astype(np.uint8)
+        t[1:] -= 128  # uint8 arithmetic wraps modulo 256, as the predictor does
+        t = np.cumsum(t, dtype=np.uint8)
     half = (t.size + 1) // 2
     out = np.empty_like(t)
     out[0::2], out[1::2] = t[:half], t[half:]

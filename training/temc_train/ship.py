@@ -104,6 +104,10 @@ def trained_for(ck) -> str:
             f"{'one core' if threads == 1 else f'{threads} threads'} of this project's 2-core machine")
     if ck.get("gpu_seconds"):
         text += f" and {ck['gpu_seconds'] / 60:.0f} GPU minutes"
+    t = ck.get("throughput")
+    if t and t.get("device") == "cuda":
+        text += (f"; its last session trained {t['crops_per_s']:,.0f} crops/s on {t['processes']} "
+                 f"GPU process(es), batch {t['batch']}, {t['amp']} autocast")
     return text
 
 
@@ -254,7 +258,8 @@ def checkpoint_facts(ckpt_path, model, data_root) -> dict:
             "session_scenes": st.get("session_scenes"),
             "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
-            "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0)}
+            "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
+            "throughput": st.get("throughput")}
 
 
 def write_goldens(model, path, gdir):

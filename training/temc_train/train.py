@@ -174,26 +174,38 @@ def finite_step(loss, model) -> bool:
     return bool(torch.isfinite(torch.stack([g.abs().max() for g in grads])).all()) if grads else True
 
 
-def learning_rate(a, trained_s: float, budget_s: float = 0.0, world: int = 1) -> float:
+def learning_rate(a, trained_s: float, cycle=(0.0, 0.0), world: int = 1) -> float:
     """The step's learning rate at `trained_s` of the run's cumulative training time.
 
     halflife: `--lr`, halved every `--lr-half-life` hours (so the schedule survives
     resumes), down to LR_FLOOR of it; constant without a half-life.
     onecycle (GPU runs): the peak is `--lr` scaled by the square root of the global batch
-    over `--lr-batch`, the batch `--lr` was tuned for (Adam's square-root rule); it rises
-    linearly from 1/25 of the peak over the first `--warmup` of the budget `budget_s`, then
-    falls along a cosine to 1/1000 of it at the budget's end. Time, not steps, drives it, so
-    a resumed run continues the same curve on any device."""
+    over `--lr-batch`, the batch `--lr` was tuned for (Adam's square-root rule). `cycle` is
+    (training seconds where the cycle began, its length in seconds): over the first
+    `--warmup` of it the rate rises linearly from 1/25 of the peak, then falls along a
+    cosine to 1/1000 of it at its end and stays there. Training time, not steps, drives it,
+    so a resumed run continues the same curve on any device."""
     if a.schedule == "halflife":
         if not a.lr_half_life:
             return a.lr
         return a.lr * max(LR_FLOOR, 0.5 ** (trained_s / 3600.0 / a.lr_half_life))
     peak = a.lr * ((a.batch * world) / (a.lr_batch or a.batch)) ** 0.5
-    t = min(max(trained_s / budget_s, 0.0), 1.0) if budget_s > 0 else 1.0
+    start, span = cycle
+    t = min(max((trained_s - start) / span, 0.0), 1.0) if span > 0 else 1.0
     if t < a.warmup:
         return peak * (1 / 25 + (1 - 1 / 25) * t / a.warmup)
     fall = (t - a.warmup) / max(1.0 - a.warmup, 1e-9)
     return peak * (1e-3 + (1 - 1e-3) * 0.5 * (1 + math.cos(math.pi * fall)))
+
+
+def start_cycle(a, state: dict, used: float) -> tuple:
+    """The one-cycle schedule's (start, length) in training seconds, kept in the state: a
+    cycle begins where a run first trains with it, or anew with `--new-cycle`, and spans
+    `--cycle-hours` (default: what is left of `--hours`); resumes continue it."""
+    if a.schedule == "onecycle" and (a.new_cycle or "cycle" not in state):
+        span = (a.cycle_hours * 3600.0) if a.cycle_hours else max(a.hours * 3600.0 - used, 0.0)
+        state["cycle"] = [used, span]
+    return tuple(state.get("cycle", (0.0, 0.0)))
 
 
 def pick_device(name: str) -> torch.device:
@@ -259,6 +271,7 @@ class BatchSource:
 
     def __init__(self, a, scenes, device, rng, seed):
         self.a, self.device, self.rng, self.scenes, self.loader = a, device, rng, scenes, None
+        self.reader = None  # data.SceneLoader, made on the first refresh
         if a.sampler == "device":
             if a.target_spp:
                 raise SystemExit("--sampler device does not do Noise2Noise targets (--target-spp)")
@@ -286,15 +299,25 @@ class BatchSource:
                 for v in arrays]
 
     def refresh(self, seed) -> None:
-        """Adds the data set's training scenes finished since the last call."""
+        """Adds the data set's training scenes finished since the last call; on the device
+        sampler they are read in worker processes and join once read (never waiting)."""
+        if self.a.sampler == "device":
+            if self.reader is None:
+                self.reader = data.SceneLoader(self.a.data, "train", [s.name for s in self.scenes])
+            new = self.reader.poll()
+            if new:
+                self.scenes = self.scenes + new
+                self.set.add(new)
+                print(f"{len(new)} new train scene(s), {len(self.scenes)} in all", flush=True)
+            return
         n = len(self.scenes)
         self.scenes = data.refresh_split(self.a.data, "train", self.scenes, self.a.target_spp)
-        if len(self.scenes) == n:
-            return
-        if self.a.sampler == "device":
-            self.set.add(self.scenes[n:])
-        elif self.loader is not None:
+        if len(self.scenes) != n and self.loader is not None:
             self._start_workers(seed)
+
+    def close(self) -> None:
+        if self.reader is not None:
+            self.reader.close()
 
 
 def load_data(a):
@@ -342,7 +365,7 @@ def hparams(a, world: int) -> dict:
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
             "mean_weight": a.mean_weight, "target_spp": a.target_spp, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
-            "warmup": a.warmup, "processes": world}
+            "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
 
 
 def train(a) -> dict:
@@ -445,10 +468,15 @@ def train(a) -> dict:
         print(f"training on {device.type} x {group.world} ({len(train_scenes)} scenes from {source}, "
               f"sampler {a.sampler})", flush=True)
     done = used() >= budget or state["step"] >= a.max_steps
+    cycle = start_cycle(a, state, used())
+    # This session's throughput: crops over the wall seconds of its steps (validation and
+    # checkpoints excluded), every process counted; the card reports it.
+    session = {"crops": 0, "seconds": 0.0}
     while not group.any(done, device):
+        wall0 = time.monotonic()
         t0 = time.monotonic() if cuda else time.process_time()
         for g in opt.param_groups:
-            g["lr"] = learning_rate(a, used(), budget, group.world)
+            g["lr"] = learning_rate(a, used(), cycle, group.world)
         loss = step()
         # Device seconds of every process: a budget is compute, however it is split.
         if cuda:
@@ -456,6 +484,11 @@ def train(a) -> dict:
         else:
             state["train_s"] += (time.process_time() - t0) * group.world
         state["step"] += 1
+        session["crops"] += a.batch * group.world
+        session["seconds"] += time.monotonic() - wall0
+        state["throughput"] = {"crops_per_s": session["crops"] / max(session["seconds"], 1e-9),
+                               "device": device.type, "processes": group.world,
+                               "batch": a.batch, "amp": a.amp, "steps": session["crops"] // (a.batch * group.world)}
         ema = loss if ema is None else 0.98 * ema + 0.02 * loss
         now = time.monotonic()
         done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
@@ -467,11 +500,13 @@ def train(a) -> dict:
                 w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
                 log.flush()
                 print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
-                      f"train {ema:.4f}  val {v:.4f}  lr {opt.param_groups[0]['lr']:.2e}", flush=True)
+                      f"train {ema:.4f}  val {v:.4f}  lr {opt.param_groups[0]['lr']:.2e}  "
+                      f"{state['throughput']['crops_per_s']:.0f} crops/s", flush=True)
             last_val = time.monotonic()
         if group.leader and (now - last_save >= a.save_minutes * 60 or done):
             checkpoint()
             last_save = time.monotonic()
+    batches.close()
     final = {"model": cpu_state(model.state_dict()), "arch": a.arch, "width": a.width, "recon": rs,
              "dataset": dataset, "train_steps": state["step"], "train_seconds": state["train_s"],
              "gpu_seconds": state["gpu_seconds"], "params": count_params(model)}
@@ -560,7 +595,11 @@ def main(argv=None):
     ap.add_argument("--lr-batch", type=int, default=0,
                     help="onecycle: the global batch --lr was tuned for (0: --batch, no scaling)")
     ap.add_argument("--warmup", type=float, default=0.05,
-                    help="onecycle: the share of the budget (--hours) spent warming up")
+                    help="onecycle: the share of the cycle spent warming up")
+    ap.add_argument("--cycle-hours", type=float, default=0.0,
+                    help="onecycle: the cycle's length in training hours (0: what is left of --hours)")
+    ap.add_argument("--new-cycle", type=int, choices=(0, 1), default=0,
+                    help="onecycle: begin a new cycle here instead of continuing the run's")
     ap.add_argument("--export", help="also write the final model as ONNX here (export.py's checks)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)

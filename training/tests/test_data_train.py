@@ -250,11 +250,20 @@ def test_the_learning_rate_halves_with_training_time():
 def test_one_cycle_scales_with_the_global_batch_warms_up_and_anneals():
     class A:
         lr, schedule, batch, lr_batch, warmup = 1e-3, "onecycle", 64, 16, 0.1
+        hours, cycle_hours, new_cycle = 1.0, 0.0, 0
     peak = 1e-3 * (64 * 4 / 16) ** 0.5  # four processes: a global batch of 256
-    lr = lambda t: train.learning_rate(A, t, 1000.0, world=4)  # noqa: E731
-    assert abs(lr(0.0) - peak / 25) < 1e-12 and abs(lr(100.0) - peak) < 1e-12
-    assert lr(50.0) < lr(100.0) and lr(550.0) < lr(300.0) < lr(100.0)
-    assert abs(lr(1000.0) - peak * 1e-3) < 1e-12 and lr(5000.0) == lr(1000.0)
+    cycle = (500.0, 1000.0)  # a cycle begun at 500 s of a resumed run
+    lr = lambda t: train.learning_rate(A, t, cycle, world=4)  # noqa: E731
+    assert abs(lr(500.0) - peak / 25) < 1e-12 and abs(lr(600.0) - peak) < 1e-12
+    assert lr(550.0) < lr(600.0) and lr(1050.0) < lr(800.0) < lr(600.0)
+    assert abs(lr(1500.0) - peak * 1e-3) < 1e-12 and lr(9000.0) == lr(1500.0)
+    # The cycle is kept in the state: it spans what is left of --hours, resumes keep it,
+    # --new-cycle (or --cycle-hours with it) begins another.
+    state = {}
+    assert train.start_cycle(A, state, 600.0) == (600.0, 3000.0)
+    assert train.start_cycle(A, state, 1200.0) == (600.0, 3000.0)
+    A.new_cycle, A.cycle_hours = 1, 0.5
+    assert train.start_cycle(A, state, 1200.0) == (1200.0, 1800.0) and state["cycle"] == [1200.0, 1800.0]
 
 
 def test_a_checkpoint_without_recon_loads_alike_in_train_and_export(dataset, tmp_path):

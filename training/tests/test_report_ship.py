@@ -287,6 +287,9 @@ def test_ship_writes_the_card_from_the_checkpoint(tiny_run, reported, tmp_path, 
 def test_card_reports_threads_gpu_time_and_old_recipes():
     ck = {"train_seconds": 600.0, "gpu_seconds": 1800.0, "hparams": {"threads": 2}}
     assert ship.trained_for(ck) == "10 CPU minutes on 2 threads of this project's 2-core machine and 30 GPU minutes"
+    ck["throughput"] = {"crops_per_s": 1712.4, "device": "cuda", "processes": 1, "batch": 256, "amp": "bf16"}
+    assert ship.trained_for(ck).endswith("30 GPU minutes; its last session trained 1,712 crops/s on 1 GPU "
+                                         "process(es), batch 256, bf16 autocast")
     assert ship.still_rendering({"train_scenes": 5}, {"train": 7})
     assert not ship.still_rendering({"train_scenes": 7}, {"train": 7})
     assert not ship.still_rendering({"train_scenes": "an unrecorded number of"}, {"train": 7})

@@ -4,12 +4,14 @@ processes (DistributedDataParallel on the CPU), on test_shard's tiny shard."""
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
+import time
 
 import torch
 
-from temc_train import export, train
+from temc_train import data, export, train
 from test_data_train import dataset  # noqa: F401  (the fixture)
 from test_shard import whole  # noqa: F401  (the fixture)
 
@@ -40,6 +42,7 @@ def test_the_gpu_command_falls_back_to_the_cpu_and_resumes(whole, tmp_path):  # 
     st = steps(out)
     assert st["step"] == 2 and st["train_s"] > 0 and st["gpu_seconds"] == 0.0
     assert (st["hparams"]["sampler"], st["hparams"]["schedule"], st["hparams"]["processes"]) == ("device", "onecycle", 1)
+    assert st["throughput"]["crops_per_s"] > 0 and st["throughput"]["steps"] == 2
     model, arch, width, info = export.load_checkpoint(os.path.join(out, "checkpoint.pt"))
     assert (arch, width, info["train_steps"]) == ("temc2", 0.0625, 2)
     run(cmd[:-1] + ["4"], **venv)  # the same command resumes
@@ -93,3 +96,24 @@ def test_the_gpu_command_trains_on_scenes_it_renders_as_it_trains(tmp_path):
     with open(tmp_path / "scenes" / "manifest.json") as f:
         names = [r["name"] for r in json.load(f)["scenes"]]
     assert names and all(n.startswith("scene-") and int(n[6:]) >= 1000 for n in names)
+
+
+def test_scenes_that_land_are_read_in_worker_processes(dataset, tmp_path):  # noqa: F811
+    root = tmp_path / "ds"
+    shutil.copytree(dataset, root)
+    with open(root / "manifest.json") as f:
+        m = json.load(f)
+    full = list(m["scenes"])
+    (root / "manifest.json").write_text(json.dumps({**m, "scenes": [r for r in full if r["name"] != "scene-00001"]}))
+    loader = data.SceneLoader(str(root), "train", ["scene-00000"])
+    try:
+        assert loader.poll() == []  # nothing new yet
+        (root / "manifest.json").write_text(json.dumps({**m, "scenes": full}))
+        got, deadline = [], time.monotonic() + 120
+        while not got and time.monotonic() < deadline:
+            got = loader.poll()
+            time.sleep(0.1)
+        assert [s.name for s in got] == ["scene-00001"] and got[0].a["color"].shape[0] == 2
+        assert loader.poll() == []  # each scene once
+    finally:
+        loader.close()
