@@ -15,7 +15,7 @@
 //! | [`materials`] | materials, their scattering functions, textures |
 //! | [`camera`], [`scene`] | the camera; the assembled scene the integrator queries |
 //! | [`description`] | scene input: the file format, OBJ, generated and named scenes |
-//! | [`rng`], [`integrator`] | random numbers; path tracing with next-event estimation |
+//! | [`rng`], [`integrator`] | random numbers; path tracing with next-event estimation, and the weaker [`Sampling`] modes |
 //! | [`film`], [`output`] | pixel sums, output layers, the EXR; atomic file writes |
 //! | [`render()`], [`render_progressive`] | the loop over pixels that ties them together |
 //!
@@ -42,4 +42,5 @@ pub mod rng;
 pub mod scene;
 pub mod spectral;
 
+pub use integrator::Sampling;
 pub use render::{kernel_for, render, render_progressive, Cancelled, Settings};

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use crate::film::{Layers, Pixel};
-use crate::integrator::{self, Kernel};
+use crate::integrator::{self, Kernel, Sampling};
 use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::spectral::sampler::LambdaSampler;
@@ -26,6 +26,9 @@ pub struct Settings {
     pub max_depth: u32,
     /// The kernel to run; `None`: the cheapest the scene allows.
     pub kernel: Option<Kernel>,
+    /// Which sampling strategies to weaken, to imitate other renderers' noise; the
+    /// default is the tracer's own sampler.
+    pub sampling: Sampling,
 }
 
 impl Default for Settings {
@@ -37,6 +40,7 @@ impl Default for Settings {
             seed: 1,
             max_depth: 12,
             kernel: None,
+            sampling: Sampling::DEFAULT,
         }
     }
 }
@@ -84,7 +88,11 @@ pub fn render_progressive(
     cps.dedup();
     let max = *cps.last().unwrap_or(&s.spp);
     let kernel = kernel_for(scene, s);
-    let sampler = LambdaSampler::for_emitters(&scene.emitter_spectra());
+    let sampler = if s.sampling.uniform_wavelength {
+        LambdaSampler::Uniform
+    } else {
+        LambdaSampler::for_emitters(&scene.emitter_spectra())
+    };
     let y_norm = temc_color::cie::cmf_integral(360.0, 830.0)[1];
     let camera = scene.camera.pinhole(s.width, s.height);
     let done = AtomicUsize::new(0);
@@ -101,9 +109,17 @@ pub fn render_progressive(
                 let mut rng = Rng::new(s.seed, (y * s.width + x) as u64);
                 let mut next = 0;
                 for k in 1..=max {
-                    let (o, d) = camera.ray(x, y, &mut rng);
+                    let ray = camera.ray(x, y, &mut rng);
                     let wl = sampler.sample(rng.uniform());
-                    let path = integrator::trace(kernel, scene, wl, o, d, &mut rng, s.max_depth);
+                    let path = integrator::trace(
+                        kernel,
+                        s.sampling,
+                        scene,
+                        wl,
+                        ray,
+                        &mut rng,
+                        s.max_depth,
+                    );
                     px.add(&path, y_norm);
                     if next < cps.len() && k == cps[next] {
                         out[next].push(px.clone());

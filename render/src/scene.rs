@@ -193,6 +193,26 @@ impl Scene {
         self.lights.prob[prim]
     }
 
+    /// Picks a light uniformly, every emitting primitive alike, from a uniform number `u`
+    /// (what a renderer without power-based selection does): the primitive and the
+    /// probability of having picked it. `None` when nothing emits.
+    pub fn pick_light_uniformly(&self, u: f32) -> Option<(usize, f32)> {
+        let prims = &self.lights.prims;
+        let k = ((u * prims.len() as f32) as usize).min(prims.len().checked_sub(1)?);
+        Some((prims[k], 1.0 / prims.len() as f32))
+    }
+
+    /// The probability with which [`Scene::pick_light_uniformly`] picks primitive `prim`.
+    pub fn uniform_light_probability(&self, prim: usize) -> f32 {
+        let prims = &self.lights.prims;
+        // `Lights::new` lists the lit primitives in index order.
+        if prims.binary_search(&prim).is_ok() {
+            1.0 / prims.len() as f32
+        } else {
+            0.0
+        }
+    }
+
     /// Spectra of every emitter and of the environment.
     pub fn emitter_spectra(&self) -> Vec<&Spectrum> {
         let mut v: Vec<&Spectrum> = self

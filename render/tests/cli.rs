@@ -144,6 +144,93 @@ fn dataset_renders_splits_and_resumes() {
     std::fs::remove_dir_all(&d).ok();
 }
 
+#[test]
+fn render_takes_sampling_modes_and_names_a_bad_one() {
+    let d = tmp("sampling");
+    let render = |modes: &str| {
+        bin()
+            .args([
+                "render",
+                "--scene",
+                "cornell-warm",
+                "--spp",
+                "2",
+                "--size",
+                "8x8",
+            ])
+            .args(["--sampling", modes, "-o"])
+            .arg(d.join("x.exr"))
+            .output()
+            .unwrap()
+    };
+    let o = succeeded(render("bsdf-only,uniform-wavelength"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("sampling bsdf-only,uniform-wavelength"),
+        "{err}"
+    );
+    let o = render("no-mis,early-rouléte");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("unknown mode \"early-rouléte\"") && err.contains("early-roulette"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn dataset_renders_1_spp_inputs_and_records_weak_sampling() {
+    let d = tmp("weak");
+    let o = bin()
+        .args([
+            "dataset",
+            "--count",
+            "3",
+            "--size",
+            "8",
+            "--spp",
+            "1,4,16,64,256",
+        ])
+        .args(["--ref-spp", "4", "--no-named", "--holdout", "0"])
+        .args(["--weak-share", "1", "--out"])
+        .arg(&d)
+        .output()
+        .unwrap();
+    succeeded(o);
+    let m = json(&d.join("manifest.json"));
+    let scenes = m["scenes"].as_array().unwrap();
+    assert_eq!(scenes.len(), 3);
+    for s in scenes {
+        let noisy: Vec<&str> = s["noisy"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f[1].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            noisy,
+            [
+                "spp0001.exr",
+                "spp0004.exr",
+                "spp0016.exr",
+                "spp0064.exr",
+                "spp0256.exr"
+            ]
+        );
+        for f in noisy {
+            assert!(d.join(s["dir"].as_str().unwrap()).join(f).exists());
+        }
+        let sampling = s["sampling"].as_str().unwrap();
+        assert!(sampling
+            .parse::<temc_render::Sampling>()
+            .is_ok_and(|s| !s.is_default()));
+        assert_eq!(m["sampling"][sampling].as_u64().map(|n| n >= 1), Some(true));
+    }
+    assert_eq!(json(&d.join("dataset.json"))["weak_share"], 1.0);
+    std::fs::remove_dir_all(&d).ok();
+}
+
 /// `scripts/slurm-render`, run as a Slurm array task would run it.
 fn slurm_render() -> Command {
     let mut c = Command::new(concat!(
@@ -163,8 +250,9 @@ fn slurm_render() -> Command {
 }
 
 /// A tiny data set of every kind of scene, with the generated ones rotated (`--start`), so
-/// the order a merge must rebuild is not the plain one.
-const TINY_SET: [&str; 15] = [
+/// the order a merge must rebuild is not the plain one, and half of them rendered with
+/// weak sampling modes.
+const TINY_SET: [&str; 17] = [
     "--count",
     "4",
     "--size",
@@ -179,6 +267,8 @@ const TINY_SET: [&str; 15] = [
     "1",
     "--start",
     "1",
+    "--weak-share",
+    "0.5",
     "--threads=2",
 ];
 

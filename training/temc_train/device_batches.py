@@ -130,6 +130,7 @@ class DeviceSet:
                 old = torch.nn.functional.pad(old, [0, 0, 0, w - old.shape[-2], 0, h - old.shape[-3]])
             setattr(self, key, t if old is None else torch.cat([old, t]))
         self.names += [s.name for s in new]
+        self.min_side = int(self.hw.min())  # kept here: reading it per batch syncs the GPU
         return len(new)
 
     def batch(self, n: int, crop: int, gen: torch.Generator) -> list:
@@ -143,7 +144,7 @@ class DeviceSet:
         dev = self.device
         u = lambda: torch.rand(n, generator=gen, device=dev)  # noqa: E731
         i = torch.randint(len(self), (n,), generator=gen, device=dev)
-        c = int(min(crop, int(self.hw.min())))
+        c = min(crop, self.min_side)
         hw = self.hw[i]
         spin = torch.where((u() < 0.5)[:, None, None], random_rotations(n, gen, dev),
                            torch.eye(3, device=dev).expand(n, 3, 3))

@@ -1,6 +1,8 @@
 //! Direct lighting: next-event estimation on the scene's emitting primitives (picked in
 //! proportion to power), MIS-weighted (power heuristic) against the surface's own
-//! sampling, and the emission a path finds when it hits a light.
+//! sampling, and the emission a path finds when it hits a light; or, in the weaker
+//! [`Sampling`] modes, the same without light sampling, with lights picked uniformly, or
+//! without MIS.
 
 use std::f32::consts::PI;
 
@@ -13,6 +15,17 @@ use crate::scene::{Hit, Scene};
 use crate::spectral::spectrum::Spectrum;
 use crate::spectral::wavelengths::{mul, Lanes, Wavelengths, LANES};
 
+use super::Sampling;
+
+/// The scene's lights as the render's sampling mode finds them.
+#[derive(Clone, Copy)]
+pub(super) struct Direct<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Which light strategies are weakened.
+    pub sampling: Sampling,
+}
+
 /// One light sample seen from a surface point, already tested for occlusion.
 pub(super) struct LightSample {
     /// Unit direction to the light.
@@ -24,7 +37,7 @@ pub(super) struct LightSample {
 }
 
 /// The power heuristic's weight of a strategy of density `a` against one of density `b`.
-pub(super) fn mis(a: f32, b: f32) -> f32 {
+fn mis(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 {
         a2 / (a2 + b2)
@@ -47,28 +60,59 @@ pub(super) fn emission(material: &Material, front: bool) -> Option<(&Spectrum, f
     }
 }
 
-/// One light sample for a surface at `hit`: `bsdf(wi)` gives the BSDF times cos(wi) per
-/// lane and the density the surface's own sampling gives `wi` (for MIS), or `None` where
-/// the surface does not reflect. Adds the weighted contribution to `radiance`.
-pub(super) fn next_event(
-    scene: &Scene,
-    hit: &Hit,
-    wl: &Wavelengths,
-    beta: &Lanes,
-    rng: &mut Rng,
-    radiance: &mut Lanes,
-    bsdf: impl Fn(V3) -> Option<(Lanes, f32)>,
-) {
-    let x = hit.p + hit.n * crate::geometry::RAY_OFFSET;
-    let Some(ls) = sample_light(scene, x, wl, rng) else {
-        return;
-    };
-    let Some((f_cos, pdf)) = bsdf(ls.wi) else {
-        return;
-    };
-    let w = mis(ls.pdf, pdf) / ls.pdf;
-    for i in 0..LANES {
-        radiance[i] += beta[i] * f_cos[i] * ls.le[i] * w;
+impl Direct<'_> {
+    /// One light sample for a surface at `hit`: `bsdf(wi)` gives the BSDF times cos(wi)
+    /// per lane and the density the surface's own sampling gives `wi` (for MIS), or `None`
+    /// where the surface does not reflect. Adds the weighted contribution to `radiance`.
+    /// Does nothing, and draws no random numbers, without light sampling.
+    pub fn next_event(
+        &self,
+        hit: &Hit,
+        wl: &Wavelengths,
+        beta: &Lanes,
+        rng: &mut Rng,
+        radiance: &mut Lanes,
+        bsdf: impl Fn(V3) -> Option<(Lanes, f32)>,
+    ) {
+        if self.sampling.bsdf_only {
+            return;
+        }
+        let x = hit.p + hit.n * crate::geometry::RAY_OFFSET;
+        let Some(ls) = sample_light(self.scene, self.sampling, x, wl, rng) else {
+            return;
+        };
+        let Some((f_cos, pdf)) = bsdf(ls.wi) else {
+            return;
+        };
+        // Without MIS the light sample counts in full, and `emitted_weight` gives the hits
+        // on emitters after this lobe nothing.
+        let w = if self.sampling.no_mis {
+            1.0 / ls.pdf
+        } else {
+            mis(ls.pdf, pdf) / ls.pdf
+        };
+        for i in 0..LANES {
+            radiance[i] += beta[i] * f_cos[i] * ls.le[i] * w;
+        }
+    }
+
+    /// The weight of the emission a path finds at `hit` (along `d`, from `from`) after a
+    /// bounce whose lobe sampled the direction with solid-angle density `prev_pdf`, where 0
+    /// marks a bounce next-event estimation did not cover (the camera, specular and
+    /// refracted directions): those count in full. So do all hits without light sampling,
+    /// and hits on what next-event estimation cannot pick.
+    pub fn emitted_weight(&self, prev_pdf: f32, from: V3, hit: &Hit, d: V3) -> f32 {
+        if prev_pdf == 0.0 || self.sampling.bsdf_only {
+            return 1.0;
+        }
+        let light = light_pdf(self.scene, self.sampling, hit.prim, from, hit, d);
+        if !self.sampling.no_mis {
+            mis(prev_pdf, light)
+        } else if light == 0.0 {
+            1.0
+        } else {
+            0.0
+        }
     }
 }
 
@@ -78,7 +122,7 @@ pub(super) fn next_event(
 /// for it on the next emitter hit.
 #[allow(clippy::too_many_arguments)] // the path state the lobe updates, as in `trace_kernel`
 pub(super) fn diffuse_bounce(
-    scene: &Scene,
+    direct: &Direct,
     hit: &Hit,
     rho: Lanes,
     lobe: f32,
@@ -87,7 +131,7 @@ pub(super) fn diffuse_bounce(
     rng: &mut Rng,
     radiance: &mut Lanes,
 ) -> (V3, f32) {
-    next_event(scene, hit, wl, beta, rng, radiance, |wi| {
+    direct.next_event(hit, wl, beta, rng, radiance, |wi| {
         let cos = hit.n.dot(wi);
         (cos > 0.0).then(|| (rho.map(|r| r * cos / PI), lobe * cos / PI))
     });
@@ -96,15 +140,22 @@ pub(super) fn diffuse_bounce(
     (wi, lobe * pdf)
 }
 
-/// Picks a light by power and a point on it, as seen from `x`; `None` when nothing emits,
-/// the point faces away (one-sided emitters) or something blocks it.
-pub(super) fn sample_light(
+/// Picks a light (by power, or uniformly in [`Sampling::uniform_lights`]) and a point on
+/// it, as seen from `x`; `None` when nothing emits, the point faces away (one-sided
+/// emitters) or something blocks it.
+fn sample_light(
     scene: &Scene,
+    sampling: Sampling,
     x: V3,
     wl: &Wavelengths,
     rng: &mut Rng,
 ) -> Option<LightSample> {
-    let (li, pick) = scene.pick_light(rng.uniform())?;
+    let u = rng.uniform();
+    let (li, pick) = if sampling.uniform_lights {
+        scene.pick_light_uniformly(u)?
+    } else {
+        scene.pick_light(u)?
+    };
     let (u1, u2) = (rng.uniform(), rng.uniform());
     let (wi, dist, area_pdf_to_solid, facing) = match scene.prims[li] {
         Prim::Sphere { c, r } => {
@@ -148,8 +199,12 @@ fn flat_sample(x: V3, q: V3, e1: V3, e2: V3, area_share: f32) -> Option<(V3, f32
 
 /// Solid-angle density with which next-event estimation picks the point `hit` on light
 /// primitive `prim`, seen from `from` along `d`, the light's selection included.
-pub(super) fn light_pdf(scene: &Scene, prim: usize, from: V3, hit: &Hit, d: V3) -> f32 {
-    let pick = scene.light_probability(prim);
+fn light_pdf(scene: &Scene, sampling: Sampling, prim: usize, from: V3, hit: &Hit, d: V3) -> f32 {
+    let pick = if sampling.uniform_lights {
+        scene.uniform_light_probability(prim)
+    } else {
+        scene.light_probability(prim)
+    };
     if pick == 0.0 {
         return 0.0;
     }

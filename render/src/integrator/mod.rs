@@ -8,8 +8,14 @@
 //! refraction, wavelengths sampled from the emitters, every material branch. The
 //! one-wavelength kernel (one wavelength per path from the start, the naive way to support
 //! dispersion) is kept as a labelled extra baseline.
+//!
+//! [`Sampling`] weakens strategies at run time, to imitate other renderers' noise (see
+//! `sampling.rs`). Those are plain branches, not kernels: each is taken the same way on
+//! every path, so it costs next to nothing, and the default path does the same arithmetic
+//! in the same order as before the modes existed, so its images did not change.
 
 mod direct;
+mod sampling;
 
 use std::f32::consts::PI;
 
@@ -23,7 +29,8 @@ use crate::materials::{Material, SMOOTH};
 use crate::rng::Rng;
 use crate::scene::{Features, Scene};
 use crate::spectral::wavelengths::{mul, Lanes, Wavelengths, LANES};
-use direct::{diffuse_bounce, emission, light_pdf, mis, next_event};
+use direct::{diffuse_bounce, emission, Direct};
+pub use sampling::{Mode, Sampling};
 
 /// Which code paths a render compiles in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,13 +87,14 @@ pub struct PathSample {
     pub depth: f32,
 }
 
-/// Traces one path with the given kernel.
+/// Traces one path from the camera ray `ray` (origin, unit direction) with the given
+/// kernel and sampling mode.
 pub fn trace(
     kernel: Kernel,
+    sampling: Sampling,
     scene: &Scene,
     wl: Wavelengths,
-    origin: V3,
-    d: V3,
+    ray: (V3, V3),
     rng: &mut Rng,
     max_depth: u32,
 ) -> PathSample {
@@ -99,7 +107,7 @@ pub fn trace(
     macro_rules! dispatch {
         ($($a:literal $b:literal $c:literal),*) => {
             match (s, di, t) {
-                $(($a, $b, $c) => trace_kernel::<$a, $b, $c>(scene, wl, origin, d, rng, max_depth),)*
+                $(($a, $b, $c) => trace_kernel::<$a, $b, $c>(sampling, scene, wl, ray, rng, max_depth),)*
             }
         };
     }
@@ -116,10 +124,10 @@ pub fn trace(
 /// shows no slowdown; on the shared 2-core machine of the restructuring (issue 17),
 /// identical runs varied by about 10 %, too much to show that, so it was left whole.
 fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
+    sampling: Sampling,
     scene: &Scene,
     mut wl: Wavelengths,
-    origin: V3,
-    d: V3,
+    (origin, d): (V3, V3),
     rng: &mut Rng,
     max_depth: u32,
 ) -> PathSample {
@@ -129,6 +137,8 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     let mut radiance = [0.0f32; LANES];
     let mut aux: Option<([f32; 3], V3)> = None;
     let mut depth0 = 0.0;
+    let direct = Direct { scene, sampling };
+    let roulette_start = sampling.roulette_start();
     let (mut o, mut d) = (origin, d);
     let mut beta = [1.0f32; LANES];
     // Solid-angle density of the last diffuse-lobe sample, for MIS on emitter hits;
@@ -156,11 +166,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
             Material::Emitter { .. } => {
                 aux.get_or_insert(([1.0; 3], hit.n));
                 if let Some((s, scale)) = emission(material, hit.front) {
-                    let w = if prev_pdf == 0.0 {
-                        1.0
-                    } else {
-                        mis(prev_pdf, light_pdf(scene, hit.prim, prev_p, &hit, d))
-                    };
+                    let w = direct.emitted_weight(prev_pdf, prev_p, &hit, d);
                     let le = s.sample(&wl);
                     for i in 0..LANES {
                         radiance[i] += beta[i] * le[i] * scale * w;
@@ -172,7 +178,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 let (rho, rgb) = reflectance.at(u, v, &wl);
                 aux.get_or_insert((rgb, hit.n));
                 let (wi, pdf) =
-                    diffuse_bounce(scene, &hit, rho, 1.0, &wl, &mut beta, rng, &mut radiance);
+                    diffuse_bounce(&direct, &hit, rho, 1.0, &wl, &mut beta, rng, &mut radiance);
                 prev_pdf = pdf;
                 (wi, false)
             }
@@ -195,7 +201,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                         .map_or((0.0, 0.0), |(fc, pdf, _)| (f * fc, f * pdf))
                 };
                 let base_pdf = |wi: V3| (1.0 - f) * hit.n.dot(wi).max(0.0) / PI;
-                next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                direct.next_event(&hit, &wl, &beta, rng, &mut radiance, |wi| {
                     let cos = hit.n.dot(wi);
                     let (c, c_pdf) = coat(wi);
                     (cos > 0.0).then(|| {
@@ -240,7 +246,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                     (reflect(wo, hit.n), wo.dot(hit.n), 1.0)
                 } else {
                     aux.get_or_insert((*albedo, hit.n));
-                    next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                    direct.next_event(&hit, &wl, &beta, rng, &mut radiance, |wi| {
                         let (fc, pdf, cos_h) = ggx_reflection(wo, wi, hit.n, a)?;
                         let fr: Lanes = fresnel(cos_h);
                         Some((fr.map(|v| v * fc), pdf))
@@ -281,7 +287,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 } else {
                     aux.get_or_insert(([1.0; 3], hit.n));
                     if lit {
-                        next_event(scene, &hit, &wl, &beta, rng, &mut radiance, |wi| {
+                        direct.next_event(&hit, &wl, &beta, rng, &mut radiance, |wi| {
                             reflection_pdf(wi).map(|(fc, pdf)| ([fc; LANES], pdf))
                         });
                     }
@@ -316,7 +322,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
         prev_p = hit.p;
         o = hit.p + if transmitted { -hit.n } else { hit.n } * RAY_OFFSET;
         d = wi;
-        if depth >= 3 {
+        if depth >= roulette_start {
             let p = (0..LANES)
                 .filter(|&i| wl.pdf[i] > 0.0)
                 .fold(0.0f32, |m, i| m.max(beta[i]))

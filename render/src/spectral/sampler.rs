@@ -1,5 +1,6 @@
 //! How a render picks its wavelengths: a table built from the visible-importance density
-//! and the emitters' spectra, so line spectra get samples and smooth ones lose nothing.
+//! and the emitters' spectra, so line spectra get samples and smooth ones lose nothing;
+//! or, to imitate a naive spectral renderer, one uniform wavelength per path.
 
 use crate::spectral::spectrum::Spectrum;
 use crate::spectral::wavelengths::{visible_pdf, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, LANES};
@@ -19,6 +20,9 @@ pub enum LambdaSampler {
         /// step's start: the search starts there instead of bisecting the whole table.
         guide: Vec<u32>,
     },
+    /// One wavelength per path, uniform over the sampled range: the naive spectral
+    /// renderer's way, kept to imitate its colour noise (`Sampling::uniform_wavelength`).
+    Uniform,
 }
 
 const GUIDE: usize = 1024;
@@ -91,6 +95,18 @@ impl LambdaSampler {
                 }
                 wl
             }
+            LambdaSampler::Uniform => {
+                let range = LAMBDA_MAX - LAMBDA_MIN;
+                let mut wl = Wavelengths {
+                    lambda: std::array::from_fn(|i| {
+                        LAMBDA_MIN + (u + i as f32 / LANES as f32).fract() * range
+                    }),
+                    pdf: [1.0 / range; LANES],
+                };
+                // Only the hero goes on, with four times the weight: one wavelength.
+                wl.terminate_secondary();
+                wl
+            }
         }
     }
 }
@@ -100,10 +116,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn uniform_sampler_draws_one_wavelength_over_the_range() {
+        // The film weighs a lane by 1 / (pdf x LANES): one uniform wavelength then
+        // estimates the integral of y-bar over the range.
+        let n = 20000;
+        let mut est = 0.0f64;
+        for k in 0..n {
+            let wl = LambdaSampler::Uniform.sample((k as f32 + 0.5) / n as f32);
+            assert!(wl.terminated());
+            let y = temc_color::cie::cmf(wl.lambda[0] as f64)[1];
+            est += y / (wl.pdf[0] as f64 * LANES as f64);
+        }
+        est /= n as f64;
+        let exact = crate::spectral::spectrum::cie_y_integral() as f64;
+        assert!((est / exact - 1.0).abs() < 2e-3, "{est} vs {exact}");
+    }
+
+    #[test]
     fn tabulated_sampler_integrates_spiky_spectra() {
         let lamp = Spectrum::fluorescent();
         let sampler = LambdaSampler::for_emitters(&[&lamp]);
-        let LambdaSampler::Table { pdf, cdf, .. } = &sampler;
+        let LambdaSampler::Table { pdf, cdf, .. } = &sampler else {
+            panic!("a table");
+        };
         assert!((pdf.iter().sum::<f32>() * BIN - 1.0).abs() < 1e-3);
         // Estimate the integral of ybar * lamp both ways; the table's estimate must agree
         // with a fine quadrature.

@@ -74,6 +74,7 @@ fn square(size: usize, spp: u32, seed: u64) -> Settings {
         seed,
         max_depth: 12,
         kernel: None,
+        sampling: temc_render::Sampling::DEFAULT,
     }
 }
 

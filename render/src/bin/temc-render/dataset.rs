@@ -6,7 +6,8 @@
 //!
 //! ```text
 //! DIR/dataset.json                 the settings; a resumed run must match them
-//! DIR/manifest.json                every finished scene, its files and seconds, totals
+//! DIR/manifest.json                every finished scene, its files, seconds and sampling;
+//!                                  totals
 //! DIR/manifest.part-I-of-N.json    the same for part I of N (`--part`, see `part.rs`),
 //!                                  until `merge-manifests` joins the parts into it
 //! DIR/{train,val,test}/NAME/scene.txt   the scene file (re-renderable)
@@ -20,8 +21,12 @@
 //! generator's `scene-*` on seeds of the test split.
 //!
 //! Noisy images at several spp come from one progressive render (each is a prefix of the
-//! next); the reference uses its own seed, so its noise is independent of theirs.
+//! next); the reference uses its own seed, so its noise is independent of theirs. With
+//! `--weak-share F` a share F of the generated scenes render their noisy images with a
+//! weaker sampler ([`weak_sampling`]), so a model also sees the noise of renderers that
+//! sample worse; references always use the tracer's own sampler.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -29,7 +34,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use temc_render::description::{format, generate, held_out, named};
 use temc_render::output::{write_bytes_atomic, write_bytes_atomic_tagged};
-use temc_render::{render_progressive, Settings};
+use temc_render::{render_progressive, Sampling, Settings};
 
 use crate::part::Part;
 
@@ -73,6 +78,12 @@ pub struct Args {
     /// `temc-render merge-manifests --out DIR` writes the set's manifest.json.
     #[arg(long, value_name = "I/N")]
     part: Option<Part>,
+    /// Share (0 to 1) of the generated scenes whose noisy images render with a randomly
+    /// chosen combination of the weak sampling modes (`render --sampling`), imitating
+    /// other renderers' noise; chosen by a hash of the seed and the scene's index, and
+    /// recorded in each scene's record. References always use the default sampler.
+    #[arg(long, default_value_t = 0.0, value_name = "F")]
+    weak_share: f64,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -90,6 +101,7 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         holdout: a.holdout,
         ref_prefix_spp: a.ref_prefix_spp,
         start: a.start,
+        weak_share: a.weak_share,
     };
     let (size, out, part) = (a.size, a.out, a.part);
     let t = Instant::now();
@@ -159,6 +171,16 @@ pub struct Options {
     /// Not recorded (a resumed set may start elsewhere).
     #[serde(skip)]
     pub start: usize,
+    /// Share of the generated scenes whose noisy images use a weak sampling mode (see
+    /// [`weak_sampling`]). Not written when 0, so the settings of a set without weak
+    /// scenes read as they did before the option, and absent (0) in those sets.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub weak_share: f64,
+}
+
+/// Whether `v` is 0 (for serde: a weak share of 0 is not written).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// One finished scene.
@@ -183,6 +205,15 @@ pub struct Record {
     pub seconds_reference: f64,
     /// The scene's features (what the kernel simulated).
     pub features: String,
+    /// The sampling mode of the noisy images: "default", or weak modes such as
+    /// "bsdf-only,uniform-wavelength" (`--weak-share`). "default" in sets made before.
+    #[serde(default = "default_sampling")]
+    pub sampling: String,
+}
+
+/// The sampling mode of records written before the modes existed.
+fn default_sampling() -> String {
+    Sampling::DEFAULT.to_string()
 }
 
 /// The data set's summary, written as `manifest.json`.
@@ -198,6 +229,10 @@ pub struct Manifest {
     pub seconds_noisy: f64,
     /// Total render seconds, references.
     pub seconds_reference: f64,
+    /// How many finished scenes rendered their noisy images with each sampling mode
+    /// ([`Record::sampling`]).
+    #[serde(default)]
+    pub sampling: BTreeMap<String, usize>,
     /// In a part's manifest (`--part`), which part; absent from the whole set's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub part: Option<PartOf>,
@@ -224,6 +259,10 @@ impl Manifest {
             layers: temc_color::layers::channel_names(),
             seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
             seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
+            sampling: records.iter().fold(BTreeMap::new(), |mut n, r| {
+                *n.entry(r.sampling.clone()).or_insert(0) += 1;
+                n
+            }),
             scenes: records,
             part,
         }
@@ -249,6 +288,8 @@ pub struct Job {
     pub split: &'static str,
     /// The scene file.
     pub text: String,
+    /// The sampling mode of its noisy images.
+    pub sampling: Sampling,
 }
 
 /// Which split a generated scene belongs to: 80 % train, 10 % validation, 10 % test,
@@ -263,6 +304,30 @@ pub fn split_of(index: usize) -> &'static str {
     }
 }
 
+/// The sampling mode of generated scene `index`'s noisy images. A share
+/// [`Options::weak_share`] of the scenes, picked by a hash of the base seed and the index
+/// (so growing `count` keeps every earlier choice, and a larger share keeps the scenes a
+/// smaller one picked), gets one of [`Sampling::weak_combinations`], chosen by a second
+/// hash; the rest the tracer's own sampler.
+pub fn weak_sampling(opts: &Options, index: usize) -> Sampling {
+    let h = splitmix(opts.seed ^ splitmix(index as u64));
+    let u = (h >> 11) as f64 / (1u64 << 53) as f64;
+    if u >= opts.weak_share {
+        return Sampling::DEFAULT;
+    }
+    let weak = Sampling::weak_combinations();
+    weak[(splitmix(h) % weak.len() as u64) as usize]
+}
+
+/// SplitMix64's finaliser: a stable 64-bit mix whose every output bit depends on every
+/// input bit.
+fn splitmix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
 /// Renders the data set, or with `part` only that part of it; `log` gets one line per
 /// scene. Returns the manifest (the part's, for a part).
 pub fn run(
@@ -275,6 +340,12 @@ pub fn run(
 ) -> Result<Manifest, String> {
     if opts.spp.is_empty() || opts.spp.contains(&0) || opts.ref_spp == 0 || opts.size < 8 {
         return Err("need --spp values > 0, --ref-spp > 0 and --size >= 8".into());
+    }
+    if !(0.0..=1.0).contains(&opts.weak_share) {
+        return Err(format!(
+            "--weak-share {}: expected a share from 0 to 1",
+            opts.weak_share
+        ));
     }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     check_settings(opts, out, part)?;
@@ -307,8 +378,13 @@ pub fn run(
             &done(job),
             serde_json::to_string_pretty(&r).unwrap().as_bytes(),
         )?;
+        let weak = if job.sampling.is_default() {
+            String::new()
+        } else {
+            format!(" (sampling {})", job.sampling)
+        };
         log(&format!(
-            "{}/{}: {}/{}: noisy {:.1} s, reference {:.1} s",
+            "{}/{}: {}/{}: noisy {:.1} s{weak}, reference {:.1} s",
             k + 1,
             jobs.len(),
             job.split,
@@ -362,19 +438,23 @@ fn check_settings(opts: &Options, out: &Path, part: Option<Part>) -> Result<(), 
 /// `start` 0.
 pub fn jobs(opts: &Options) -> Vec<Job> {
     let mut jobs = Vec::new();
-    let mut push = |name: String, split, text: String| {
+    let mut push = |name: String, split, text: String, sampling| {
         let index = jobs.len();
         jobs.push(Job {
             index,
             name,
             split,
             text,
+            sampling,
         });
     };
+    // The named and held-out test scenes keep the tracer's own sampler: their scores stay
+    // comparable with sets made before the weak modes.
+    let own = Sampling::DEFAULT;
     if opts.named {
         for (name, _, text) in named::NAMED {
             if name != "furnace" {
-                push(format!("named-{name}"), "test", text.to_string());
+                push(format!("named-{name}"), "test", text.to_string(), own);
             }
         }
     }
@@ -382,7 +462,7 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
         for k in 0..opts.holdout {
             let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
             let text = held_out::scene_text(family, seed).expect("a listed family");
-            push(format!("holdout-{family}-{k:03}"), "test", text);
+            push(format!("holdout-{family}-{k:03}"), "test", text, own);
         }
     }
     for i in 0..opts.count {
@@ -391,6 +471,7 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
             format!("scene-{i:05}"),
             split_of(i),
             generate::scene_text(seed),
+            weak_sampling(opts, i),
         );
     }
     // The generated scenes come last, so rotating the tail rotates them alone.
@@ -405,7 +486,11 @@ fn render_scene(
     opts: &Options,
     out: &Path,
     Job {
-        name, split, text, ..
+        name,
+        split,
+        text,
+        sampling,
+        ..
     }: &Job,
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
@@ -422,6 +507,7 @@ fn render_scene(
         seed: opts.seed ^ fnv1a(name.as_bytes()),
         max_depth: 12,
         kernel: None,
+        sampling: *sampling,
     };
     let t0 = Instant::now();
     let noisy = render_progressive(&sc, &base, &opts.spp, progress, cancel)
@@ -442,6 +528,7 @@ fn render_scene(
         &sc,
         &Settings {
             seed: !base.seed,
+            sampling: Sampling::DEFAULT,
             ..base
         },
         &ref_checkpoints,
@@ -470,6 +557,7 @@ fn render_scene(
         seconds_noisy,
         seconds_reference,
         features: format!("{:?}", sc.features()),
+        sampling: sampling.to_string(),
     })
 }
 
@@ -532,6 +620,7 @@ mod tests {
             holdout,
             ref_prefix_spp: vec![],
             start,
+            weak_share: 0.0,
         }
     }
 
@@ -648,6 +737,80 @@ mod tests {
             ]
         );
         assert!(held.iter().all(|j| j.split == "test"));
+    }
+
+    #[test]
+    fn weak_sampling_is_a_seeded_share_of_the_generated_scenes() {
+        let opts = |weak_share, seed| Options {
+            weak_share,
+            seed,
+            ..tiny(1000, 0, 0)
+        };
+        let picks =
+            |o: &Options| -> Vec<Sampling> { (0..o.count).map(|i| weak_sampling(o, i)).collect() };
+        let weak = |v: &[Sampling]| v.iter().filter(|s| !s.is_default()).count();
+        let (third, half) = (picks(&opts(0.3, 3)), picks(&opts(0.5, 3)));
+        assert!((250..=350).contains(&weak(&third)), "{}", weak(&third));
+        assert_eq!(third, picks(&opts(0.3, 3)), "deterministic");
+        assert_ne!(third, picks(&opts(0.3, 4)), "seeded");
+        assert_eq!(weak(&picks(&opts(0.0, 3))), 0);
+        assert_eq!(weak(&picks(&opts(1.0, 3))), 1000);
+        // A larger share keeps the scenes a smaller one made weak, with their modes.
+        for (a, b) in third.iter().zip(&half) {
+            assert!(a.is_default() || a == b);
+        }
+        // Every valid combination of the modes occurs.
+        let all = picks(&opts(1.0, 3));
+        for c in Sampling::weak_combinations() {
+            assert!(all.contains(&c), "{c} never picked");
+        }
+        // Only generated scenes are weakened.
+        let named = Options {
+            named: true,
+            ..opts(1.0, 3)
+        };
+        for j in jobs(&Options { count: 4, ..named }) {
+            assert_eq!(
+                j.sampling.is_default(),
+                !j.name.starts_with("scene-"),
+                "{}",
+                j.name
+            );
+        }
+    }
+
+    #[test]
+    fn weak_scenes_are_recorded_and_counted_and_their_share_is_a_setting() {
+        let out = std::env::temp_dir().join(format!("temc-dataset-weak-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let opts = Options {
+            weak_share: 0.5,
+            ..tiny(6, 0, 0)
+        };
+        let (quiet, none, go) = (|_: &str| {}, |_: usize| {}, AtomicBool::new(false));
+        let m = run(&opts, &out, None, &quiet, &none, &go).unwrap();
+        let mut counts = BTreeMap::new();
+        for (job, r) in jobs(&opts).iter().zip(&m.scenes) {
+            assert_eq!(r.sampling, job.sampling.to_string(), "{}", r.name);
+            *counts.entry(r.sampling.clone()).or_insert(0) += 1;
+        }
+        assert!(m.scenes.iter().any(|r| r.sampling != "default"));
+        assert_eq!(m.sampling, counts);
+        let settings = std::fs::read_to_string(out.join("dataset.json")).unwrap();
+        assert!(settings.contains("\"weak_share\": 0.5"), "{settings}");
+        // Another share in the same folder is refused.
+        let other = Options {
+            weak_share: 0.0,
+            ..opts.clone()
+        };
+        let err = run(&other, &out, None, &quiet, &none, &go).unwrap_err();
+        assert!(err.contains("other settings"), "{err}");
+        std::fs::remove_dir_all(&out).unwrap();
+        // A set without weak scenes writes its settings as before the option.
+        let plain = serde_json::to_string(&tiny(6, 0, 0)).unwrap();
+        assert!(!plain.contains("weak_share"), "{plain}");
+        let read: Options = serde_json::from_str(&plain).unwrap();
+        assert_eq!(read.weak_share, 0.0);
     }
 
     #[test]

@@ -3,11 +3,13 @@
 //!
 //! The applications are modules of this binary, not of the tracer library: [`dataset`]
 //! (with [`part`], the partition for clusters, and [`merge`], which joins the parts),
+//! [`compare_sampling`] (the noise of the weak sampling modes),
 //! `demo` and `bench` (the two that need the denoiser, temc: feature `denoise`, on by
 //! default).
 
 #[cfg(feature = "denoise")]
 mod bench;
+mod compare_sampling;
 mod dataset;
 #[cfg(feature = "denoise")]
 mod demo;
@@ -23,7 +25,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use temc_render::description::{format, generate, held_out, named};
 use temc_render::scene::Scene;
-use temc_render::{render_progressive, Settings};
+use temc_render::{render_progressive, Sampling, Settings};
 
 #[derive(Parser)]
 #[command(
@@ -69,6 +71,9 @@ enum Command {
     /// the throughput on the Cornell box; writes a Markdown report.
     #[cfg(feature = "denoise")]
     Bench(bench::Args),
+    /// Measure the noise of each weak sampling mode (render --sampling) against the
+    /// default sampler's reference on named scenes; writes a Markdown table.
+    CompareSampling(compare_sampling::Args),
 }
 
 #[derive(Args)]
@@ -94,6 +99,11 @@ struct RenderArgs {
     /// Run the general kernel instead of the one specialised for the scene.
     #[arg(long)]
     general: bool,
+    /// Weaker sampling that imitates other renderers' noise, comma-separated: bsdf-only,
+    /// uniform-lights, no-mis, uniform-wavelength, early-roulette (docs/render.md); every
+    /// mode converges to the same image. "default" is the tracer's own sampler.
+    #[arg(long, default_value = "default", value_name = "MODES")]
+    sampling: Sampling,
     /// Output EXR.
     #[arg(short, long)]
     output: PathBuf,
@@ -166,6 +176,7 @@ fn run(command: Command, cancel: &AtomicBool) -> Result<(), String> {
         Command::MergeManifests(args) => merge::main(args),
         #[cfg(feature = "denoise")]
         Command::Bench(args) => bench::main(args, cancel),
+        Command::CompareSampling(args) => compare_sampling::main(args, cancel),
     }
 }
 
@@ -185,6 +196,7 @@ fn render(a: RenderArgs, cancel: &AtomicBool) -> Result<(), String> {
         kernel: a
             .general
             .then_some(temc_render::integrator::Kernel::GENERAL),
+        sampling: a.sampling,
     };
     let kernel = temc_render::kernel_for(&sc, &settings);
     let b = bar(h as u64);
@@ -203,10 +215,11 @@ fn render(a: RenderArgs, cancel: &AtomicBool) -> Result<(), String> {
     let secs = t.elapsed().as_secs_f64();
     layers.write_exr(&a.output)?;
     eprintln!(
-        "temc-render: {} {w}x{h} at {} spp in {secs:.2} s ({:.2} M paths/s, {kernel:?}) -> {}",
+        "temc-render: {} {w}x{h} at {} spp in {secs:.2} s ({:.2} M paths/s, {kernel:?}, sampling {}) -> {}",
         sc.name,
         a.spp,
         (w * h) as f64 * a.spp as f64 / secs / 1e6,
+        a.sampling,
         a.output.display()
     );
     Ok(())

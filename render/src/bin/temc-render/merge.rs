@@ -165,13 +165,19 @@ fn in_order(opts: &Options, manifests: Vec<(Part, Manifest)>) -> Result<Vec<Reco
     let mut unfinished: BTreeMap<usize, Vec<String>> = BTreeMap::new();
     for job in jobs(opts) {
         match by_name.remove(&job.name) {
-            Some(r) if r.split == job.split => records.push(r),
-            Some(r) => {
+            Some(r) if r.split != job.split => {
                 return Err(format!(
                     "scene {} is in split {}, not {}",
                     r.name, r.split, job.split
                 ))
             }
+            Some(r) if r.sampling != job.sampling.to_string() => {
+                return Err(format!(
+                    "scene {} was rendered with sampling {}, not {}",
+                    r.name, r.sampling, job.sampling
+                ))
+            }
+            Some(r) => records.push(r),
             None => {
                 let part = Part::holding(job.index, count);
                 unfinished.entry(part.index).or_default().push(job.name);
