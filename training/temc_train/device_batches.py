@@ -110,7 +110,8 @@ class DeviceSet:
     def add(self, scenes) -> int:
         """Moves `scenes` (`data.Scene` or `shard.ShardScene`; all with the same spp list)
         to the device; returns how many were new."""
-        new = [s for s in scenes if s.name not in set(self.names)]
+        have = set(self.names)
+        new = [s for s in scenes if s.name not in have]
         if not new:
             return 0
         self.spp = self.spp or list(new[0].spp)

@@ -37,6 +37,7 @@ in float32, Adam's moments in bfloat16, and the moments dropped when the file wo
 """
 
 import argparse
+import contextlib
 import csv
 import math
 import os
@@ -66,11 +67,14 @@ def recon_settings(a) -> dict:
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide)}
 
 
-def denoise(model, xs, rs: dict):
-    """Network + reconstruction on a batch of make_sample's arrays (as tensors)."""
-    filters = model(*xs[:3])
-    return reconstruct(xs[3], xs[4], filters, rs["kernel"], rs["demodulate"], rs["eps"],
-                       guide=rs.get("guide", False))
+def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
+    """Network + reconstruction on a batch of make_sample's arrays (as tensors). `amp`
+    (an autocast context) covers the network only: the reconstruction stays in float32,
+    since it divides and takes powers of radiance that bfloat16's 8 bits would blur."""
+    with amp:
+        filters = model(*xs[:3])
+    return reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
+                       rs["eps"], guide=rs.get("guide", False))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -423,6 +427,8 @@ def train(a) -> dict:
         state["train_scenes"] = max(len(batches.scenes), prior if isinstance(prior, int) else 0)
         state["session_scenes"] = len(batches.scenes)
         state["hparams"] = hparams(a, group.world)
+        if session["crops"]:
+            state["throughput"] = throughput()
         ck = {"model": cpu_state(model.state_dict()),
               "opt": compact_optimizer_state(opt.state_dict()),
               "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
@@ -437,12 +443,7 @@ def train(a) -> dict:
         """One optimiser step; returns its loss."""
         xs = batches.next()
         xs[:3] = [x.contiguous(memory_format=layout) for x in xs[:3]]
-        with amp:
-            filters = net(*xs[:3])
-        # The reconstruction and the loss stay in float32: they divide and take powers of
-        # radiance that bfloat16's 8 bits would blur.
-        out = reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
-                          rs["eps"], guide=rs.get("guide", False))
+        out = denoise(net, xs, rs, amp)
         loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
                 else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
         opt.zero_grad(set_to_none=True)
@@ -472,9 +473,14 @@ def train(a) -> dict:
     # This session's throughput: crops over the wall seconds of its steps (validation and
     # checkpoints excluded), every process counted; the card reports it.
     session = {"crops": 0, "seconds": 0.0}
+
+    def throughput():
+        return {"crops_per_s": session["crops"] / max(session["seconds"], 1e-9), "device": device.type,
+                "processes": group.world, "batch": a.batch, "amp": a.amp,
+                "steps": session["crops"] // (a.batch * group.world)}
     while not group.any(done, device):
         wall0 = time.monotonic()
-        t0 = time.monotonic() if cuda else time.process_time()
+        t0 = wall0 if cuda else time.process_time()
         for g in opt.param_groups:
             g["lr"] = learning_rate(a, used(), cycle, group.world)
         loss = step()
@@ -486,9 +492,6 @@ def train(a) -> dict:
         state["step"] += 1
         session["crops"] += a.batch * group.world
         session["seconds"] += time.monotonic() - wall0
-        state["throughput"] = {"crops_per_s": session["crops"] / max(session["seconds"], 1e-9),
-                               "device": device.type, "processes": group.world,
-                               "batch": a.batch, "amp": a.amp, "steps": session["crops"] // (a.batch * group.world)}
         ema = loss if ema is None else 0.98 * ema + 0.02 * loss
         now = time.monotonic()
         done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
@@ -501,7 +504,7 @@ def train(a) -> dict:
                 log.flush()
                 print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
                       f"train {ema:.4f}  val {v:.4f}  lr {opt.param_groups[0]['lr']:.2e}  "
-                      f"{state['throughput']['crops_per_s']:.0f} crops/s", flush=True)
+                      f"{throughput()['crops_per_s']:.0f} crops/s", flush=True)
             last_val = time.monotonic()
         if group.leader and (now - last_save >= a.save_minutes * 60 or done):
             checkpoint()
