@@ -35,6 +35,14 @@ pub const SCRATCH_PLANES: f64 = 8.0;
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
 
+/// The fixed range term (docs/reconstruction.md, "Fixed range term") penalises log2
+/// luminance steps beyond this (8x) between a tap and the centre.
+pub const RANGE_TAU: f32 = 3.0;
+
+/// Added to the opened luminance, at the exposure that puts the image's log-mean at 0.18,
+/// before the log2: noise in the dark never reads as an edge.
+pub const RANGE_FLOOR: f32 = 0.02;
+
 /// The model metadata the reconstruction needs (docs/contracts.md §2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {
@@ -51,6 +59,11 @@ pub struct Params {
     /// Each level also holds a luma and a chroma guide (`temc.guide`): tap t's logit gains
     /// the range term -(g(p + t) - g(p))^2 / 2.
     pub guide: bool,
+    /// Every logit also gains the fixed range term on the level's opened log2 luminance
+    /// (`temc.fixed_range`), which keeps lamps' energy out of their dark neighbours.
+    pub fixed_range: bool,
+    /// The input scale (exposure) of the image, read only by the fixed range term.
+    pub exposure: f32,
 }
 
 /// How far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from the centre:
@@ -205,6 +218,41 @@ fn downsample(x: &[f32], planes: usize, h: usize, w: usize) -> Vec<f32> {
     out
 }
 
+/// The fixed range term's guide of one level: log2(opened luminance x `exposure` +
+/// RANGE_FLOOR), where the 3x3 grey opening (min, then max, over the pixels inside) drops
+/// bright features smaller than 3x3 (fireflies, which must still spread) to their
+/// surroundings and keeps larger ones (lamps) with exact edges. Non-finite values cannot
+/// occur: the luminance is finite and non-negative (sanitised radiance).
+fn range_guide(luma: &[f32], h: usize, w: usize, exposure: f32) -> Vec<f32> {
+    let eroded = window3(luma, h, w, f32::min);
+    window3(&eroded, h, w, f32::max)
+        .into_iter()
+        .map(|v| (v.max(0.0) * exposure + RANGE_FLOOR).log2())
+        .collect()
+}
+
+/// `op` folded over each pixel's 3x3 window, clipped to the image: rows, then columns.
+fn window3(x: &[f32], h: usize, w: usize, op: fn(f32, f32) -> f32) -> Vec<f32> {
+    let mut rows = vec![0.0; h * w];
+    for (src, dst) in x.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
+        for (i, o) in dst.iter_mut().enumerate() {
+            let (a, b) = (i.saturating_sub(1), (i + 1).min(w - 1));
+            *o = src[a..=b].iter().copied().reduce(op).expect("non-empty");
+        }
+    }
+    let mut out = vec![0.0; h * w];
+    for y in 0..h {
+        let (a, b) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        for (i, o) in out[y * w..][..w].iter_mut().enumerate() {
+            *o = (a..=b)
+                .map(|r| rows[r * w + i])
+                .reduce(op)
+                .expect("non-empty");
+        }
+    }
+    out
+}
+
 /// Reusable per-call buffers: the weights of every tap for one block of one row.
 struct Scratch {
     k: usize,
@@ -312,15 +360,23 @@ fn filter_level_any(
         .zip(b)
         .map(|((r, g), b)| LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b)
         .collect();
+    let fixed = p.fixed_range.then(|| range_guide(&luma, h, w, p.exposure));
     let mut fy = vec![0.0; n];
     let mut fc = vec![0.0; 3 * n];
     for y in 0..h {
         for bx0 in (0..w).step_by(BLOCK) {
             let bx = (bx0, (bx0 + BLOCK).min(w));
             let at = y * w + bx0..y * w + bx.1;
-            s.weights_for(&f[..k2 * n], guide(0), y, h, w, bx);
+            s.weights_for(&f[..k2 * n], [guide(0), fixed.as_deref()], y, h, w, bx);
             s.apply(&luma, y, h, w, bx, &mut fy[at.clone()]);
-            s.weights_for(&f[k2 * n..2 * k2 * n], guide(1), y, h, w, bx);
+            s.weights_for(
+                &f[k2 * n..2 * k2 * n],
+                [guide(1), fixed.as_deref()],
+                y,
+                h,
+                w,
+                bx,
+            );
             for c in 0..3 {
                 let plane = &x[c * n..][..n];
                 s.apply(plane, y, h, w, bx, &mut fc[c * n..][at.clone()]);
@@ -332,13 +388,15 @@ fn filter_level_any(
 
 impl Scratch {
     /// The softmax weights (unnormalised, with 1 / sum in `norm`) of row `y`, block `bx`,
-    /// over the taps inside the image; `apply` reads only those. With a `guide` plane each
-    /// logit gains the range term -(g(tap) - g(centre))^2 / 2 (guides cleaned like logits).
+    /// over the taps inside the image; `apply` reads only those. `guides`: with a learned
+    /// guide plane each logit gains the range term -(g(tap) - g(centre))^2 / 2 (guides
+    /// cleaned like logits); with the fixed range term's plane ([`range_guide`]) it gains
+    /// -max(0, |g(tap) - g(centre)| - RANGE_TAU)^2 / 2.
     #[inline(always)]
     fn weights_for(
         &mut self,
         logits: &[f32],
-        guide: Option<&[f32]>,
+        [guide, fixed]: [Option<&[f32]>; 2],
         y: usize,
         h: usize,
         w: usize,
@@ -365,6 +423,15 @@ impl Scratch {
                 for ((o, &a), &c) in wt.iter_mut().zip(gt).zip(gc) {
                     let d = clean_logit(a) - clean_logit(c);
                     *o -= 0.5 * d * d;
+                }
+            }
+            if let Some(g) = fixed {
+                let row = (y as isize + dy) as usize * w;
+                let gt = &g[row + (x0 as isize + dx) as usize..][..x1 - x0];
+                let gc = &g[y * w + x0..][..x1 - x0];
+                for ((o, &a), &c) in wt.iter_mut().zip(gt).zip(gc) {
+                    let e = ((a - c).abs() - RANGE_TAU).max(0.0);
+                    *o -= 0.5 * e * e;
                 }
             }
             for (&v, m) in wt.iter().zip(&mut max[x0 - bx.0..x1 - bx.0]) {
@@ -554,6 +621,8 @@ mod tests {
             eps: 0.01,
             ldr: false,
             guide: false,
+            fixed_range: false,
+            exposure: 1.0,
         }
     }
 
@@ -922,6 +991,74 @@ mod tests {
         assert!(close(lum(&out, n, 2 * w + 2), 500.0, 1e-3));
     }
 
+    /// The fixed range term with logits that pull every pixel toward the lamp's taps by
+    /// e^12 (a worst case a network could learn): a 4x4 lamp 1000x its ceiling stays out
+    /// of every ceiling pixel and keeps its own value, wherever the exposure puts the
+    /// ceiling above RANGE_FLOOR (below it, darkness reads as one level: the floor's price).
+    #[test]
+    fn the_fixed_range_term_keeps_a_lamp_out_of_any_logits() {
+        let (h, w, k) = (16, 16, 5);
+        let n = h * w;
+        let lamp = |i: usize| (4..8).contains(&(i / w)) && (4..8).contains(&(i % w));
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| if lamp(i % n) { 100.0 } else { 0.1 })
+            .collect();
+        // Logit 20 on every tap that lands on the lamp, 0 elsewhere.
+        let mut f = vec![0.0; channels(k, false) * n];
+        for i in 0..n {
+            for t in 0..k * k {
+                let (dy, dx) = tap(k, t);
+                let (y, x) = ((i / w) as isize + dy, (i % w) as isize + dx);
+                let inside = (0..h as isize).contains(&y) && (0..w as isize).contains(&x);
+                if inside && lamp(y as usize * w + x as usize) {
+                    f[t * n + i] = 12.0;
+                    f[(k * k + t) * n + i] = 12.0;
+                }
+            }
+        }
+        for exposure in [1.0, 1.8, 10.0, 1000.0] {
+            let p = Params {
+                fixed_range: true,
+                exposure,
+                ..params(1, k)
+            };
+            let out = run(&p, &rgb, None, &[f.clone()], h, w);
+            let free = run(&params(1, k), &rgb, None, &[f.clone()], h, w);
+            for i in 0..n {
+                let want = if lamp(i) { 100.0 } else { 0.1 };
+                assert!(
+                    (lum(&out, n, i) - want).abs() <= 0.02 * want,
+                    "exposure {exposure}, pixel {i}: {} for {want}",
+                    lum(&out, n, i)
+                );
+            }
+            assert!(lum(&free, n, 3 * w + 3) > 90.0, "without it the lamp leaks");
+        }
+    }
+
+    /// A firefly (smaller than the 3x3 opening) is not fenced off: the box filter spreads
+    /// it as it would without the term, keeping the energy.
+    #[test]
+    fn the_fixed_range_term_lets_a_firefly_spread() {
+        let (h, w, k) = (16, 16, 5);
+        let n = h * w;
+        let fly = 8 * w + 8;
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| if i % n == fly { 1000.0 } else { 0.1 })
+            .collect();
+        let f = vec![vec![0.0; channels(k, false) * n]];
+        let p = Params {
+            fixed_range: true,
+            ..params(1, k)
+        };
+        let out = run(&p, &rgb, None, &f, h, w);
+        let plain = run(&params(1, k), &rgb, None, &f, h, w);
+        for i in 0..n {
+            assert!(close(lum(&out, n, i), lum(&plain, n, i), 1e-5), "pixel {i}");
+        }
+        assert!(lum(&out, n, fly) < 41.0);
+    }
+
     fn json_f32(v: &serde_json::Value) -> f32 {
         match v {
             serde_json::Value::String(s) => match s.as_str() {
@@ -963,6 +1100,8 @@ mod tests {
                 eps: case["eps"].as_f64().unwrap() as f32,
                 ldr: case["ldr"].as_bool().unwrap(),
                 guide: case["guide"].as_bool().unwrap_or(false),
+                fixed_range: case["fixed_range"].as_bool().unwrap_or(false),
+                exposure: case["exposure"].as_f64().unwrap_or(1.0) as f32,
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));

@@ -295,10 +295,32 @@ def dark_hidden_lamp():
     return camera((-3.7, -2.7, 1.5), (0.5, 1, 1), 24), "the only lamp hides behind a wall that stops short of the ceiling"
 
 
+def lamp_box():
+    world()
+    room(4, 6, 3, material("white", (0.75, 0.75, 0.72), 0.9))
+    box((-1.95, 0, 1.5), (0.08, 5.9, 2.9), material("red", (0.65, 0.08, 0.06), 0.9))
+    box((1.95, 0, 1.5), (0.08, 5.9, 2.9), material("green", (0.1, 0.5, 0.12), 0.9))
+    # A visible ceiling panel, slightly below the ceiling so its edge meets a dark seam.
+    plane((0, 0.6, 2.98), 0.8, emissive("panel", (1, 0.92, 0.8), 25), (math.pi, 0, 0))
+    box((-0.6, 0.9, 0.6), (0.9, 0.9, 1.2), material("block", (0.7, 0.7, 0.7), 0.8), 0.35)
+    sphere((0.7, 0.2, 0.45), 0.45, material("ball", (0.75, 0.75, 0.75), 0.6))
+    return camera((0, -2.8, 1.5), (0, 0.6, 1.9), 24), "a box lit by a visible ceiling panel: lamp-beside-ceiling edges"
+
+
+def lamp_metal_glass_box():
+    world()
+    room(4, 6, 3, material("white", (0.75, 0.75, 0.72), 0.9))
+    plane((0, 0.4, 2.98), 0.6, emissive("panel", (1, 0.95, 0.9), 40), (math.pi, 0, 0))
+    sphere((-0.8, 0.6, 0.55), 0.55, material("chrome", (0.92, 0.92, 0.92), 0.03, 1.0))
+    sphere((0.8, 0.2, 0.55), 0.55, glass("glass"))
+    box((0, 1.5, 0.35), (1.2, 0.6, 0.7), material("gold", (1, 0.76, 0.33), 0.25, 1.0))
+    return camera((0, -2.8, 1.5), (0, 0.5, 1.6), 24), "a visible lamp over metal and glass: leaks through reflections and refractions"
+
+
 SCENES = {f.__name__.replace("_", "-"): f for f in (
     sun_sky_courtyard, sun_sky_low, sun_through_pergola, small_lamps_room, spot_dark_stage,
     emissive_strips, neon_sign, glass_caustic, glass_outdoors, metal_spheres, metal_room,
-    dark_window, dark_hidden_lamp)}
+    dark_window, dark_hidden_lamp, lamp_box, lamp_metal_glass_box)}
 
 
 # ---- rendering ------------------------------------------------------------------------

@@ -51,6 +51,9 @@ pub struct ModelInfo {
     /// Whether each level holds two guide channels, the range term's (`temc.guide`;
     /// optional, absent means no).
     pub guide: bool,
+    /// Whether the reconstruction adds the fixed range term (`temc.fixed_range`;
+    /// optional, absent means no).
+    pub fixed_range: bool,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -119,15 +122,15 @@ impl ModelInfo {
             }
         };
         let demod_eps: f32 = num("temc.demod_eps", get("temc.demod_eps")?)?;
-        let guide = match raw.get("temc.guide").map(String::as_str) {
-            None | Some("0") => false,
-            Some("1") => true,
-            Some(v) => {
-                return Err(Error::Model(format!(
-                    "metadata `temc.guide` = {v:?} must be 0 or 1"
-                )))
-            }
+        let flag = |key: &str| match raw.get(key).map(String::as_str) {
+            None | Some("0") => Ok(false),
+            Some("1") => Ok(true),
+            Some(v) => Err(Error::Model(format!(
+                "metadata `{key}` = {v:?} must be 0 or 1"
+            ))),
         };
+        let guide = flag("temc.guide")?;
+        let fixed_range = flag("temc.fixed_range")?;
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -181,6 +184,7 @@ impl ModelInfo {
             demodulate,
             demod_eps,
             guide,
+            fixed_range,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,

@@ -337,11 +337,13 @@ enum AuxBuffer {
 }
 
 /// Stage 6 and 7: the network, then the reconstruction; returns the window's output [3, n].
+/// `exposure` is the image's input scale (the fixed range term reads it).
 fn denoise_tile(
     model: &Model,
     p: &Packed,
     win: crate::tile::Rect,
     hdr: bool,
+    exposure: f32,
 ) -> Result<Vec<f32>, Error> {
     let info = model.info();
     let filters = model.run(
@@ -360,6 +362,8 @@ fn denoise_tile(
         eps: info.demod_eps,
         ldr: !hdr,
         guide: info.guide,
+        fixed_range: info.fixed_range,
+        exposure,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
     let albedo = info.demodulate.then_some(p.albedo.as_slice());
@@ -409,7 +413,8 @@ pub(super) fn run(
         }
         let win = tile.window;
         let packed = pack_tile(win, (w, h), &src, stats, job.hdr, info);
-        let out = denoise_tile(model, &packed, win, job.hdr)?;
+        let exposure = stats.exposure.input_scale();
+        let out = denoise_tile(model, &packed, win, job.hdr, exposure)?;
         let n = win.w * win.h;
         let core = tile.core;
         for y in core.y..core.y + core.h {

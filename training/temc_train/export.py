@@ -45,7 +45,8 @@ def recon_of(model) -> dict:
     d = RECON_DEFAULTS
     return {"levels": model.levels, "kernel": model.kernel, "split": model.split,
             "demodulate": bool(getattr(model, "demodulate", d["demodulate"])),
-            "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"]))}
+            "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"])),
+            "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -68,6 +69,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.demodulate": "1" if recon["demodulate"] else "0",
         "temc.demod_eps": repr(float(recon["eps"])),
         "temc.guide": "1" if recon.get("guide") else "0",
+        "temc.fixed_range": "1" if recon.get("fixed_range") else "0",
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",
@@ -226,6 +228,7 @@ def load_checkpoint(path: str, arch=None, width=None):
                   recon["guide"])
     model.load_state_dict(state)
     model.demodulate, model.eps = recon["demodulate"], recon["eps"]
+    model.fixed_range = recon["fixed_range"]
     return model, arch, float(width), info
 
 

@@ -20,7 +20,8 @@ TOLERANCE = 1e-5
 SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
-def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False):
+def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
+          fixed_range=False, exposure=1.0):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -29,7 +30,8 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
         for l in range(levels)
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
-                eps=0.01, ldr=ldr, guide=guide, rgb=rgb, albedo=albedo if demodulate else None,
+                eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
+                rgb=rgb, albedo=albedo if demodulate else None,
                 filters=filters)
 
 
@@ -77,6 +79,19 @@ def cases():
     pick = rng.random(c["filters"][0][-2:].shape) < 0.4
     c["filters"][0][-2:][pick] = rng.choice(SPECIALS, size=int(pick.sum()))
     out.append(c)
+    # The fixed range term: a 4x4 lamp 250x its surroundings, every logit pulling toward
+    # it; a firefly it must not fence off; random cases with guides, levels, demodulation.
+    c = _case("fixed_lamp_16x16_L1_k5", rng, 16, 16, 1, 5, sd=0.5, fixed_range=True, exposure=0.5)
+    c["rgb"][:, 4:8, 4:8] = 500.0
+    c["filters"][0][:50] += np.where(np.arange(50) % 25 < 12, 8.0, 0.0)[:, None, None]
+    out.append(c)
+    c = _case("fixed_firefly_16x8_L1_k5", rng, 16, 8, 1, 5, sd=0.5, fixed_range=True, exposure=2.0)
+    c["rgb"][:, 7, 3] = 900.0
+    out.append(c)
+    out.append(_case("fixed_guide_16x8_L2_k3", rng, 16, 8, 2, 3, guide=True, fixed_range=True,
+                     exposure=3.0))
+    out.append(_case("fixed_demod_8x8_L3_k3", rng, 8, 8, 3, 3, demodulate=True, fixed_range=True,
+                     exposure=0.25))
     return out
 
 
@@ -85,7 +100,8 @@ def run(case, dtype):
     t = lambda a: torch.from_numpy(np.asarray(a, np.float32).astype(np.float64)).to(dtype)[None]
     albedo = None if case["albedo"] is None else t(case["albedo"])
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
-                      case["demodulate"], case["eps"], case["ldr"], case["guide"])
+                      case["demodulate"], case["eps"], case["ldr"], case["guide"],
+                      case["fixed_range"], case["exposure"])
     return out[0].double().numpy()
 
 

@@ -18,6 +18,11 @@ LUMA = (0.2126, 0.7152, 0.0722)
 LOGIT_MAX = 1e4
 MIN_CHROMA_LUMA = 1e-30
 GREY_PULL = 1e-6
+# The fixed range term (docs/reconstruction.md, "Fixed range term"): log2 luminance steps
+# beyond RANGE_TAU (8x) are penalised; RANGE_FLOOR, at the exposure that puts the image's
+# log-mean at 0.18, keeps noise in the dark from reading as edges.
+RANGE_TAU = 3.0
+RANGE_FLOOR = 0.02
 
 
 def channels(kernel, guide=False):
@@ -64,7 +69,29 @@ def _range_term(guide, kernel):
     return -0.5 * (taps - guide) ** 2
 
 
-def _filter_level(x, logits, kernel, guide=False):
+def opened(y):
+    """The 3x3 grey opening (min, then max, over the taps inside) of a luminance plane:
+    bright features smaller than 3x3 (fireflies, noise) drop to their surroundings, larger
+    ones (lamps) stay with their edges exact."""
+    pad = lambda v: F.pad(v, (1, 1, 1, 1), mode="replicate")  # noqa: E731 (= taps inside)
+    eroded = -F.max_pool2d(pad(-y), 3, stride=1)
+    return F.max_pool2d(pad(eroded), 3, stride=1)
+
+
+def fixed_range_term(y, kernel, scale=1.0):
+    """-(max(0, |g(p + t) - g(p)| - RANGE_TAU))^2 / 2 per tap t, g = log2 of the opened
+    luminance at the exposure `scale` plus RANGE_FLOOR: a tap more than 2^RANGE_TAU times
+    brighter or darker than the centre, in a feature of 3x3 px or more, falls off whatever
+    the learned logits say (a lamp 1000x its ceiling weighs e^-24.5 there); fireflies, gone
+    from the opening, still spread. Fixed, not learned: no gradient flows through g."""
+    n, _, h, w = y.shape
+    g = torch.log2(opened(y.detach()).clamp(min=0.0) * scale + RANGE_FLOOR)
+    taps = F.unfold(g, kernel, padding=kernel // 2).view(n, kernel * kernel, h, w)
+    excess = ((taps - g).abs() - RANGE_TAU).clamp(min=0.0)
+    return -0.5 * excess * excess
+
+
+def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
     """(fy, fc, luma blend logit, chroma blend logit) of one level; softmax over taps inside."""
     kk = kernel * kernel
     logits = _clean(logits)
@@ -73,9 +100,13 @@ def _filter_level(x, logits, kernel, guide=False):
     if guide:
         luma_l = luma_l + _range_term(logits[:, 2 * kk + 2 : 2 * kk + 3], kernel)
         chroma_l = chroma_l + _range_term(logits[:, 2 * kk + 3 : 2 * kk + 4], kernel)
+    y = _lum(x)
+    if fixed_range:
+        term = fixed_range_term(y, kernel, scale)
+        luma_l, chroma_l = luma_l + term, chroma_l + term
     luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
     chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
-    fy = _apply(_lum(x), luma_w, kernel)
+    fy = _apply(y, luma_w, kernel)
     fc = _apply(x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
 
@@ -101,9 +132,13 @@ def _recombine(cy, cc):
     return (c + pull) * scale
 
 
-def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False):
+def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
+                fixed_range=False, scale=1.0):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
-    [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating."""
+    [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
+    `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
+    the exposure that puts `rgb` at a log-mean near 0.18 (1 for training crops, which come
+    scaled), read only by that term."""
     for level, f in enumerate(filters):
         want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
@@ -114,7 +149,7 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     for level, f in enumerate(filters):
         if level:
             x = F.avg_pool2d(x, 2)
-        levels.append(_filter_level(x, f, kernel, guide))
+        levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
         cy, cc = _compose(fy, cy, a), _compose(fc, cc, b)
@@ -143,6 +178,7 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     radiance = color.sanitize_rgb(noisy).astype(np.float32)
     filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
     out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"], recon["demodulate"],
-                      recon["eps"], guide=recon.get("guide", False))
+                      recon["eps"], guide=recon.get("guide", False),
+                      fixed_range=recon.get("fixed_range", False), scale=scale)
     out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
     return keep_mean_stage(out, radiance) if keep else out

@@ -23,6 +23,8 @@ from . import evaluate as ev
 from .models import ARCH_NAMES, label
 
 HARD = ("named-cornell-spiky", "named-prism", "named-firefly", "named-dark-room", "named-laser")
+# The default page: the accuracy report of the project's own data set.
+PAGE = {"title": "Accuracy against time", "command": "scripts/accuracy-report", "img": "img/accuracy"}
 
 
 def model_label(temc, path):
@@ -288,14 +290,14 @@ def measure_aux_modes(scene, path, layers, ref, outs, aux, denoisers):
     return rows
 
 
-def measure(root, tests, denoisers, aux):
-    """measure_scene over the test scenes: (rows, aux rows, strips of the HARD scenes)."""
+def measure(root, tests, denoisers, aux, strip_scenes=HARD):
+    """measure_scene over the test scenes: (rows, aux rows, strips of `strip_scenes`)."""
     rows, aux_rows, strips = [], [], {}
     for rec in tests:
         r, ar, strip = measure_scene(rec, root, denoisers, aux)
         rows += r
         aux_rows += ar
-        if rec["name"] in HARD and strip:
+        if rec["name"] in strip_scenes and strip:
             strips[rec["name"]] = strip
         print(f"evaluated {rec['name']}", flush=True)
     return rows, aux_rows, strips
@@ -396,9 +398,10 @@ def machine():
     return f"{cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}"
 
 
-def header(tests, manifest, threads, where):
-    return ["# Accuracy against time", "",
-            "Regenerate with `scripts/accuracy-report` (one command; every number below comes from that run).",
+def header(tests, manifest, threads, where, title="Accuracy against time",
+           command="scripts/accuracy-report"):
+    return [f"# {title}", "",
+            f"Regenerate with `{command}` (one command; every number below comes from that run).",
             f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}; every hand-written and "
             "held-out-family test scene, and the generator's first test seeds by index, `--generated`), "
             f"{manifest['options']['size']}² pixels, "
@@ -461,9 +464,9 @@ def raw_equivalent(raw, err):
     return spp, raw[k][2] * spp / raw[k][0]
 
 
-def error_vs_time_section(m, denoisers, spps):
+def error_vs_time_section(m, denoisers, spps, img="img/accuracy"):
     """How many spp of raw rendering equal 16 spp denoised."""
-    md = ["## Error against time", "", "![error against time](img/accuracy/error-vs-time.png)", "",
+    md = ["## Error against time", "", f"![error against time]({img}/error-vs-time.png)", "",
           "RelMSE here is the geometric mean over the test scenes (the tables above give arithmetic "
           "means, which named-firefly's noisy input dominates).", "",
           "| denoiser at 16 spp | RelMSE (geo. mean) | raw spp with the same RelMSE | raw render seconds | 16 spp + denoise seconds |",
@@ -479,6 +482,8 @@ def error_vs_time_section(m, denoisers, spps):
 
 
 def timing_section(size, timing):
+    if not timing:
+        return []
     return (["", f"## Denoising time at {size}", "", "| denoiser | threads | median seconds |", "|---|---:|---:|"]
             + [f"| {n} | {t} | {s:.3f} |" for n, t, s in timing])
 
@@ -499,17 +504,17 @@ def aux_section(aux_label, aux_rows):
     return md
 
 
-def strips_section(names, files):
+def strips_section(names, files, img="img/accuracy"):
     if not files:
         return []
     return (["", "## Hard cases at 16 spp", "", "Left to right: " + ", ".join(names) + ".", ""]
-            + [f"**{s}**\n\n![{s}](img/accuracy/{fn})\n" for s, fn in files])
+            + [f"**{s}**\n\n![{s}]({img}/{fn})\n" for s, fn in files])
 
 
-def training_section(curves, logs):
+def training_section(curves, logs, img="img/accuracy"):
     if not curves:
         return []
-    return (["", "## Training", "", "![training curves](img/accuracy/training.png)", "",
+    return (["", "## Training", "", f"![training curves]({img}/training.png)", "",
              "| run | steps | training minutes | final validation loss |", "|---|---:|---:|---:|"]
             + [f"| {n} | {r['step']} | {float(r['train_seconds']) / 60:.0f} | {float(r['val_loss']):.4f} |"
                for n, r in curves]
@@ -517,16 +522,26 @@ def training_section(curves, logs):
             + [f"- {line}" for line in claims(logs)])
 
 
-def markdown(m, tests, manifest, denoisers, labels, threads, where, extra):
+def markdown(m, tests, manifest, denoisers, labels, threads, where, extra, page=None):
     """The report, from the measurements `m` and the sections that need more than them
-    (`extra`: timing, aux, strips and training lines, in that order)."""
+    (`extra`: timing, aux, strips and training lines, in that order). `page`: the title,
+    the command that regenerates it and the image folder (parse_args' defaults when None)."""
+    page = page or PAGE
     spps = sorted({r["spp"] for r in m.rows})
     scenes = [r["name"] for r in tests]
-    return (header(tests, manifest, threads, where)
+    return (header(tests, manifest, threads, where, page["title"], page["command"])
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
             + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
             + per_scene_section(m, denoisers, spps, scenes)
-            + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps) + extra)
+            + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps, page["img"])
+            + extra)
+
+
+
+def page_of(a) -> dict:
+    """The title, command and image folder of the page `a` (parse_args' options) asks for;
+    options a caller's namespace lacks keep PAGE's values."""
+    return {k: getattr(a, k, None) or v for k, v in PAGE.items()}
 
 
 def parse_args(argv):
@@ -537,7 +552,13 @@ def parse_args(argv):
     ap.add_argument("--runs", help="training runs folder (log.csv per run) for the training curves")
     ap.add_argument("--out", required=True, help="the Markdown report")
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--timing-size", default="1920x1080")
+    ap.add_argument("--timing-size", default="1920x1080", help='"WxH", or "none" to skip timing')
+    ap.add_argument("--title", default=PAGE["title"])
+    ap.add_argument("--command", default=PAGE["command"], help="the command the page names for "
+                    "regenerating it")
+    ap.add_argument("--img", default=PAGE["img"], help="the image folder, relative to --out's")
+    ap.add_argument("--strips", default=",".join(HARD),
+                    help="comma-separated test scenes whose 16-spp results become image strips")
     ap.add_argument("--generated", type=int, default=32,
                     help="generated test scenes to measure: the first N finished, by index (every "
                     "named-* and holdout-* scene is always measured); keeps one run under an hour "
@@ -590,19 +611,23 @@ def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
     oidn_denoise, oidn_time = oidn_denoise or oidn_denoiser, oidn_time or oidn_timing
     plt = pyplot()
 
-    img_dir = os.path.join(os.path.dirname(os.path.abspath(a.out)), "img", "accuracy")
+    page = page_of(a)
+    img_dir = os.path.join(os.path.dirname(os.path.abspath(a.out)), page["img"])
     os.makedirs(img_dir, exist_ok=True)
     manifest, tests = read_test_scenes(a.data, a.generated)
     labels = [name for name, _, _ in models]
     denoisers = ["noisy"] + labels + list(OIDN)
     runs = {name: run for name, run, _ in models}
     runs.update((name, oidn_denoise(q)) for name, q in OIDN.items())
-    rows, aux_rows, strips = measure(a.data, tests, runs, aux)
+    strip_scenes = getattr(a, "strips", None)
+    rows, aux_rows, strips = measure(a.data, tests, runs, aux,
+                                     strip_scenes.split(",") if strip_scenes else HARD)
     write_csv(os.path.join(img_dir, "measurements.csv"), rows)
     m = Means(rows)
     plot_error_vs_time(plt, denoisers, sorted({r["spp"] for r in rows}), m,
                        os.path.join(img_dir, "error-vs-time.png"))
-    timing = timings({name: b for name, _, b in models}, a.threads, a.timing_size, oidn_time)
+    timing = ([] if a.timing_size == "none" else
+              timings({name: b for name, _, b in models}, a.threads, a.timing_size, oidn_time))
     strip_names = ["noisy", "OIDN high"] + labels + ["reference"]
     strip_files = write_strips(strips, strip_names, img_dir)
     curves, logs = read_training_logs(a.runs) if a.runs else ([], {})
@@ -611,8 +636,9 @@ def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
     if aux_rows:
         write_csv(os.path.join(img_dir, "aux-modes.csv"), aux_rows)
     extra = (timing_section(a.timing_size, timing) + aux_section(aux and aux[0], aux_rows)
-             + strips_section(strip_names, strip_files) + training_section(curves, logs))
-    md = markdown(m, tests, manifest, denoisers, labels, a.threads, where or machine(), extra)
+             + strips_section(strip_names, strip_files, page["img"])
+             + training_section(curves, logs, page["img"]))
+    md = markdown(m, tests, manifest, denoisers, labels, a.threads, where or machine(), extra, page)
     with open(a.out, "w") as f:
         f.write("\n".join(md) + "\n")
     print(f"wrote {a.out}")
@@ -621,7 +647,8 @@ def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
 def main(argv=None):
     a = parse_args(argv)
     models = [(model_label(a.temc, m)[0], temc_denoiser(a.temc, m, a.threads),
-               temc_bench(a.temc, m, a.timing_size)) for m in a.model]
+               None if a.timing_size == "none" else temc_bench(a.temc, m, a.timing_size))
+              for m in a.model]
     aux_model = a.aux_model or next((m for m in a.model if m.endswith("temc2-balanced.onnx")),
                                     a.model[0] if a.model else None)
     aux = (model_label(a.temc, aux_model)[0], temc_denoiser(a.temc, aux_model, a.threads)) if aux_model else None

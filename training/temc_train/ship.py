@@ -39,6 +39,10 @@ SHIPPED = {
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
 }
+# Reconstruction settings every shipped model gets, whatever it trained with: the fixed
+# range term (issue 36, item 1) is a fixed function, no weight learns it; on the Cycles
+# family it kept RelMSE within 0.5 % and cut the lamps' leak (docs/leak-probe.md).
+SHIP_RECON = {"fixed_range": True}
 # Tile overlaps the seam test raised above the measured reach's (file -> pixels, why): the
 # reach is measured on a mild image, and seams show on heavy-tailed noise first.
 MIN_OVERLAP = {
@@ -166,6 +170,10 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         + (("guides (the range term) on" + (f", added at step {ck['guide_from_step']:,}"
                                             if ck.get("guide_from_step") else "") + ", ")
            if recon.get("guide") else "")
+        + ("the fixed range term (lamps kept out of dark neighbours) on"
+           + (f" from step {ck['fixed_range_from_step']:,}, " if ck.get("fixed_range_from_step")
+              else " (added at shipping; not seen in training), ")
+           if recon.get("fixed_range") else "")
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
         "keep-mean stage (docs/keep-mean.md; not seen in training) |",
@@ -258,6 +266,7 @@ def checkpoint_facts(ckpt_path, model, data_root) -> dict:
             "session_scenes": st.get("session_scenes"),
             "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
+            "fixed_range_from_step": st.get("fixed_range_from_step"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}
 
@@ -285,7 +294,7 @@ def ship_one(a, file, run_name, mode, meas, data):
         raise SystemExit(f"{ckpt_path}: not trained yet (scripts/train-all)")
     model, arch, width, info = load_checkpoint(ckpt_path)
     ck = checkpoint_facts(ckpt_path, model, a.data)
-    recon = recon_of(model)
+    recon = {**recon_of(model), **SHIP_RECON}
     overlap = max(receptive.effective_overlap(model, recon), MIN_OVERLAP.get(file, 0))
     test_relmse = table(meas, label(arch, width)).get(16, {}).get("RelMSE") if meas else None
     desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "

@@ -64,7 +64,8 @@ def _save(obj, path):
 def recon_settings(a) -> dict:
     """The reconstruction a run trains for; stored in its checkpoints and exported."""
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
-            "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide)}
+            "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
+            "fixed_range": bool(a.fixed_range)}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -74,7 +75,8 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
     with amp:
         filters = model(*xs[:3])
     return reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
-                       rs["eps"], guide=rs.get("guide", False))
+                       rs["eps"], guide=rs.get("guide", False),
+                       fixed_range=rs.get("fixed_range", False))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -346,6 +348,11 @@ def resume_model(a, model, ckpt_path, rs):
     grow = a.levels > held_recon["levels"]
     if grow:
         held_recon["levels"] = a.levels
+    if held_recon["fixed_range"] != rs["fixed_range"]:
+        # A fixed term, nothing to learn or load: a run may switch it at any step.
+        held_recon["fixed_range"] = rs["fixed_range"]
+        ck["recon"] = dict(ck.get("recon") or {}, fixed_range=rs["fixed_range"])
+        ck["state"]["fixed_range_from_step"] = ck["state"]["step"]
     held = (ck["arch"], ck["width"], held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
@@ -550,6 +557,10 @@ def main(argv=None):
     ap.add_argument("--guide", type=int, choices=(0, 1), default=0,
                     help="predict a guide per filter whose differences reject taps (the range "
                          "term); a run trained without it gains it on resume")
+    ap.add_argument("--fixed-range", type=int, choices=(0, 1), default=0,
+                    help="add the fixed range term on opened log luminance, which keeps lamps' "
+                         "energy out of their dark neighbours (docs/reconstruction.md); a run "
+                         "may switch it at any step")
     ap.add_argument("--run", "--run-dir", dest="run", required=True,
                     help="folder for checkpoints and the log (--run-dir: the same, for torchrun, "
                          "whose own parser takes --run for an abbreviation of its --run-path)")

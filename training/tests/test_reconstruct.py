@@ -9,6 +9,7 @@ import pathlib
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 from temc_train import recon_vectors
 from temc_train.reconstruct import LINEAR_MAX, LOGIT_MAX, LUMA, channels, reach, reconstruct
@@ -172,3 +173,36 @@ def test_guide_channels_and_their_gradient():
     out = reconstruct(rgb, None, [torch.cat([torch.zeros(1, 2 * 9 + 2, 8, 8), g], 1)], 3, guide=True)
     out.sum().backward()
     assert float(g.grad.abs().max()) > 0
+
+
+def _lamp_logits(lamp, kernel, value):
+    """Logits `value` on every tap that lands on the `lamp` mask [H, W], 0 elsewhere."""
+    h, w = lamp.shape
+    taps = F.unfold(lamp[None, None].float(), kernel, padding=kernel // 2).view(kernel * kernel, h, w)
+    on = taps * value
+    return torch.cat([on, on, torch.zeros(2, h, w)])[None]
+
+
+@pytest.mark.parametrize("exposure", [1.0, 1.8, 10.0, 1000.0])
+def test_the_fixed_range_term_keeps_a_lamp_out_of_any_logits(exposure):
+    # The Rust test of the same name, through PyTorch: logits pull every pixel toward the
+    # lamp by e^12, and still no ceiling pixel moves by 2 %, nor the lamp.
+    lamp = torch.zeros(16, 16, dtype=torch.bool)
+    lamp[4:8, 4:8] = True
+    rgb = torch.where(lamp, 100.0, 0.1).expand(1, 3, 16, 16).contiguous()
+    f = _lamp_logits(lamp, 5, 12.0)
+    out = lum(reconstruct(rgb, None, [f], 5, fixed_range=True, scale=exposure))[0]
+    want = torch.where(lamp, 100.0, 0.1)
+    assert float(((out - want).abs() / want).max()) <= 0.02
+    assert float(lum(reconstruct(rgb, None, [f], 5))[0, 3, 3]) > 90.0
+
+
+def test_the_fixed_range_term_lets_a_firefly_spread_and_passes_no_gradient_to_it():
+    rgb = torch.full((1, 3, 16, 16), 0.1)
+    rgb[:, :, 8, 8] = 1000.0
+    f = torch.zeros(1, channels(5), 16, 16, requires_grad=True)
+    out = reconstruct(rgb, None, [f], 5, fixed_range=True)
+    assert torch.allclose(out, reconstruct(rgb, None, [f], 5), rtol=1e-5)
+    assert float(lum(out)[0, 8, 8]) < 41.0
+    out.sum().backward()
+    assert torch.isfinite(f.grad).all()
