@@ -8,26 +8,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
-
-#define TEMC_VERSION_STRING "2.3.0"
-
-#if defined(__cplusplus) && __cplusplus >= 201402L
-#define TEMC_DEPRECATED(msg) [[deprecated(msg)]]
-#elif defined(__GNUC__) || defined(__clang__)
-#define TEMC_DEPRECATED(msg) __attribute__((deprecated(msg)))
-#else
-#define TEMC_DEPRECATED(msg)
-#endif
-
-/* The C API is not in a C++ namespace; TEMC_NAMESPACE names temc.hpp's. */
-#define TEMC_API_NAMESPACE
-#define TEMC_API_NAMESPACE_BEGIN
-#define TEMC_API_NAMESPACE_END
-#define TEMC_API_NAMESPACE_USING
-#define TEMC_NAMESPACE temc
-#define TEMC_NAMESPACE_BEGIN namespace temc {
-#define TEMC_NAMESPACE_END }
-#define TEMC_NAMESPACE_USING using namespace temc;
+#include "temc_config.h"
 
 /* The GPU stream and queue types the per-backend constructors name (they refuse every
  * GPU with TEMC_ERROR_UNSUPPORTED_HARDWARE, and take them as const void*). */
@@ -39,20 +20,6 @@ typedef void *MTLCommandQueue_id;
 typedef void *MTLBuffer_id;
 #endif
 
-
-// The OIDN API version temc implements: a client's `TEMC_VERSION_MAJOR >= 2` checks
-// take their 2.x path. (The temc library's own version is the device parameter
-// "libraryVersion".)
-#define TEMC_VERSION_MAJOR 2
-
-// Minor version of the OIDN API implemented.
-#define TEMC_VERSION_MINOR 3
-
-// Patch version of the OIDN API implemented.
-#define TEMC_VERSION_PATCH 0
-
-// `major * 10000 + minor * 100 + patch`, as OIDN_VERSION.
-#define TEMC_VERSION 20300
 
 // Bytes in a physical device's UUID.
 #define TEMC_UUID_SIZE 16
@@ -68,6 +35,9 @@ typedef struct TEMCDeviceImpl TEMCDeviceImpl;
 
 // Opaque filter type.
 typedef struct TEMCFilterImpl TEMCFilterImpl;
+
+// Opaque semaphore type (OIDN 2.5).
+typedef struct TEMCSemaphoreImpl TEMCSemaphoreImpl;
 
 // A device handle.
 typedef TEMCDeviceImpl *TEMCDevice;
@@ -91,6 +61,12 @@ typedef uint32_t TEMCStorage;
 // External memory type flags (for the import functions, which the CPU device refuses).
 typedef uint32_t TEMCExternalMemoryTypeFlag;
 
+// A semaphore handle (the CPU device imports none, so no valid one exists).
+typedef TEMCSemaphoreImpl *TEMCSemaphore;
+
+// A set of TEMCExternalSemaphoreTypeFlag values.
+typedef uint32_t TEMCExternalSemaphoreTypeFlags;
+
 // A filter handle.
 typedef TEMCFilterImpl *TEMCFilter;
 
@@ -100,6 +76,10 @@ typedef uint32_t TEMCFormat;
 // Called with the progress in [0, 1]; return false to cancel. It runs while the filter
 // executes: it must not call functions on the same filter.
 typedef bool (*TEMCProgressMonitorFunction)(void *user_ptr, double n);
+
+// External semaphore type flags (OIDN 2.5; for the import functions, which the CPU
+// device refuses: its "externalSemaphoreTypes" is 0).
+typedef uint32_t TEMCExternalSemaphoreTypeFlag;
 
 // Quality modes for the filter's "quality" parameter.
 typedef uint32_t TEMCQuality;
@@ -215,6 +195,36 @@ typedef uint32_t TEMCQuality;
 // An NT handle to a Direct3D 12 committed resource.
 #define TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_RESOURCE (1 << 9)
 
+// No external semaphore type.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE 0
+
+// An opaque POSIX file descriptor.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_FD (1 << 0)
+
+// An opaque NT handle.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32 (1 << 1)
+
+// An opaque global share (KMT) handle.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32_KMT (1 << 2)
+
+// An NT handle to a Direct3D 11 fence.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D11_FENCE (1 << 3)
+
+// An NT handle to a Direct3D 12 fence.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D12_FENCE (1 << 4)
+
+// An NT handle to a Direct3D 11 keyed mutex.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX (1 << 5)
+
+// A KMT handle to a Direct3D 11 keyed mutex.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX_KMT (1 << 6)
+
+// A POSIX file descriptor of a timeline semaphore.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_FD (1 << 7)
+
+// An NT handle to a timeline semaphore.
+#define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_WIN32 (1 << 8)
+
 // The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
 // temc types.
 #define TEMC_QUALITY_DEFAULT 0
@@ -229,107 +239,110 @@ typedef uint32_t TEMCQuality;
 // trailed it and was retired (training/runs/RETIRED.md).
 #define TEMC_QUALITY_HIGH 6
 
-#ifdef __cplusplus
-extern "C" {
-#endif // __cplusplus
-
 // Returns the number of physical devices: 1 (the CPU).
-int32_t temcGetNumPhysicalDevices(void);
+TEMC_API int32_t temcGetNumPhysicalDevices(void);
 
 // Reads a bool parameter of a physical device: "uuidSupported", "luidSupported",
 // "pciAddressSupported" (all false for the CPU).
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-bool temcGetPhysicalDeviceBool(int32_t id, const char *name);
+TEMC_API bool temcGetPhysicalDeviceBool(int32_t id, const char *name);
 
 // Reads an int parameter of a physical device: "type" (TEMC_DEVICE_TYPE_CPU).
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-int32_t temcGetPhysicalDeviceInt(int32_t id, const char *name);
+TEMC_API int32_t temcGetPhysicalDeviceInt(int32_t id, const char *name);
 
 // Reads an unsigned int parameter of a physical device (as temcGetPhysicalDeviceInt).
 //
 // # Safety
 // As temcGetPhysicalDeviceInt.
-uint32_t temcGetPhysicalDeviceUInt(int32_t id, const char *name);
+TEMC_API uint32_t temcGetPhysicalDeviceUInt(int32_t id, const char *name);
 
 // Reads a string parameter of a physical device: "name" (the CPU model). The string lives
 // as long as the process.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-const char *temcGetPhysicalDeviceString(int32_t id, const char *name);
+TEMC_API const char *temcGetPhysicalDeviceString(int32_t id, const char *name);
 
 // Reads opaque data of a physical device ("uuid", "luid"): the CPU device has none, so
 // this returns NULL with an error, and 0 in `byte_size` (may be NULL).
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string; `byte_size` NULL or writable.
-const void *temcGetPhysicalDeviceData(int32_t id, const char *name, uintptr_t *byte_size);
+TEMC_API const void *temcGetPhysicalDeviceData(int32_t id, const char *name, uintptr_t *byte_size);
 
 // Returns whether the CPU device is supported: true.
-bool temcIsCPUDeviceSupported(void);
+TEMC_API bool temcIsCPUDeviceSupported(void);
 
 // Returns whether a SYCL device is supported: false.
-bool temcIsSYCLDeviceSupported(const void *_device);
+TEMC_API bool temcIsSYCLDeviceSupported(const void *_device);
 
 // Returns whether a CUDA device is supported: false.
-bool temcIsCUDADeviceSupported(int32_t _device_id);
+TEMC_API bool temcIsCUDADeviceSupported(int32_t _device_id);
 
 // Returns whether a HIP device is supported: false.
-bool temcIsHIPDeviceSupported(int32_t _device_id);
+TEMC_API bool temcIsHIPDeviceSupported(int32_t _device_id);
 
 // Returns whether a Metal device is supported: false.
-bool temcIsMetalDeviceSupported(void *_device);
+TEMC_API bool temcIsMetalDeviceSupported(void *_device);
 
 // Creates a device: TEMC_DEVICE_TYPE_DEFAULT or _CPU. The GPU types give NULL with
 // TEMC_ERROR_UNSUPPORTED_HARDWARE, other values TEMC_ERROR_INVALID_ARGUMENT;
 // temcGetDeviceError(NULL, ...) says why.
-TEMCDevice temcNewDevice(TEMCDeviceType device_type);
+TEMC_API TEMCDevice temcNewDevice(TEMCDeviceType device_type);
 
 // Creates a device from a physical device ID (0, the CPU).
-TEMCDevice temcNewDeviceByID(int32_t physical_device_id);
+TEMC_API TEMCDevice temcNewDeviceByID(int32_t physical_device_id);
 
 // Creates a device from a physical device's UUID: the CPU has none, so this gives NULL
 // with TEMC_ERROR_INVALID_ARGUMENT.
-TEMCDevice temcNewDeviceByUUID(const void *_uuid);
+TEMC_API TEMCDevice temcNewDeviceByUUID(const void *_uuid);
 
 // Creates a device from a physical device's LUID: NULL, as temcNewDeviceByUUID.
-TEMCDevice temcNewDeviceByLUID(const void *_luid);
+TEMC_API TEMCDevice temcNewDeviceByLUID(const void *_luid);
 
 // Creates a device from a PCI address: NULL, as temcNewDeviceByUUID.
+TEMC_API
 TEMCDevice temcNewDeviceByPCIAddress(int32_t _pci_domain,
                                      int32_t _pci_bus,
                                      int32_t _pci_device,
                                      int32_t _pci_function);
 
 // Creates a SYCL device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
-TEMCDevice temcNewSYCLDevice(const void *_queues, int32_t _num_queues);
+TEMC_API TEMCDevice temcNewSYCLDevice(const void *_queues, int32_t _num_queues);
 
 // Creates a CUDA device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
-TEMCDevice temcNewCUDADevice(const int32_t *_device_ids, const void *_streams, int32_t _num_pairs);
+TEMC_API
+TEMCDevice temcNewCUDADevice(const int32_t *_device_ids,
+                             const void *_streams,
+                             int32_t _num_pairs);
 
 // Creates a HIP device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
-TEMCDevice temcNewHIPDevice(const int32_t *_device_ids, const void *_streams, int32_t _num_pairs);
+TEMC_API
+TEMCDevice temcNewHIPDevice(const int32_t *_device_ids,
+                            const void *_streams,
+                            int32_t _num_pairs);
 
 // Creates a Metal device: NULL with TEMC_ERROR_UNSUPPORTED_HARDWARE.
-TEMCDevice temcNewMetalDevice(const void *_command_queues, int32_t _num_queues);
+TEMC_API TEMCDevice temcNewMetalDevice(const void *_command_queues, int32_t _num_queues);
 
 // Adds a reference to the device.
-void temcRetainDevice(TEMCDevice device);
+TEMC_API void temcRetainDevice(TEMCDevice device);
 
 // Drops a reference; with the last one the handle is dead (filters and buffers made on
 // the device keep what they need of it until they are released too).
-void temcReleaseDevice(TEMCDevice device);
+TEMC_API void temcReleaseDevice(TEMCDevice device);
 
 // Commits the device's parameters (builds its thread pool). Required before filters run.
-void temcCommitDevice(TEMCDevice device);
+TEMC_API void temcCommitDevice(TEMCDevice device);
 
 // Waits for the device's asynchronous operations: they all complete before returning, so
 // this only checks the handle.
-void temcSyncDevice(TEMCDevice device);
+TEMC_API void temcSyncDevice(TEMCDevice device);
 
 // Sets an int (or bool) device parameter: "numThreads" (0 = all cores; more than the
 // cores are capped at them when the device commits), "verbose",
@@ -337,65 +350,66 @@ void temcSyncDevice(TEMCDevice device);
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-void temcSetDeviceInt(TEMCDevice device, const char *name, int32_t value);
+TEMC_API void temcSetDeviceInt(TEMCDevice device, const char *name, int32_t value);
 
 // Sets a bool device parameter (as temcSetDeviceInt with 0 or 1).
 //
 // # Safety
 // As temcSetDeviceInt.
-void temcSetDeviceBool(TEMCDevice device, const char *name, bool value);
+TEMC_API void temcSetDeviceBool(TEMCDevice device, const char *name, bool value);
 
 // Sets an unsigned int device parameter (as temcSetDeviceInt).
 //
 // # Safety
 // As temcSetDeviceInt.
-void temcSetDeviceUInt(TEMCDevice device, const char *name, uint32_t value);
+TEMC_API void temcSetDeviceUInt(TEMCDevice device, const char *name, uint32_t value);
 
 // Deprecated OIDN 1.x name of temcSetDeviceBool.
 //
 // # Safety
 // As temcSetDeviceInt.
-void temcSetDevice1b(TEMCDevice device, const char *name, bool value);
+TEMC_API void temcSetDevice1b(TEMCDevice device, const char *name, bool value);
 
 // Deprecated OIDN 1.x name of temcSetDeviceInt.
 //
 // # Safety
 // As temcSetDeviceInt.
-void temcSetDevice1i(TEMCDevice device, const char *name, int32_t value);
+TEMC_API void temcSetDevice1i(TEMCDevice device, const char *name, int32_t value);
 
 // Reads an int (or bool) device parameter: "type", "version" (TEMC_VERSION),
 // "versionMajor", "versionMinor", "versionPatch", "libraryVersion" (temc's own,
 // major*10000+minor*100+patch), "numThreads", "verbose", "setAffinity",
-// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes". Unknown
-// names read 0 with a warning.
+// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes",
+// "externalSemaphoreTypes" (0: the CPU device imports no semaphores). Unknown names read
+// 0 with a warning.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-int32_t temcGetDeviceInt(TEMCDevice device, const char *name);
+TEMC_API int32_t temcGetDeviceInt(TEMCDevice device, const char *name);
 
 // Reads a bool device parameter (as temcGetDeviceInt, != 0).
 //
 // # Safety
 // As temcGetDeviceInt.
-bool temcGetDeviceBool(TEMCDevice device, const char *name);
+TEMC_API bool temcGetDeviceBool(TEMCDevice device, const char *name);
 
 // Reads an unsigned int device parameter (as temcGetDeviceInt).
 //
 // # Safety
 // As temcGetDeviceInt.
-uint32_t temcGetDeviceUInt(TEMCDevice device, const char *name);
+TEMC_API uint32_t temcGetDeviceUInt(TEMCDevice device, const char *name);
 
 // Deprecated OIDN 1.x name of temcGetDeviceBool.
 //
 // # Safety
 // As temcGetDeviceInt.
-bool temcGetDevice1b(TEMCDevice device, const char *name);
+TEMC_API bool temcGetDevice1b(TEMCDevice device, const char *name);
 
 // Deprecated OIDN 1.x name of temcGetDeviceInt.
 //
 // # Safety
 // As temcGetDeviceInt.
-int32_t temcGetDevice1i(TEMCDevice device, const char *name);
+TEMC_API int32_t temcGetDevice1i(TEMCDevice device, const char *name);
 
 // Registers a function called with every error of this device (NULL removes it). It is
 // called with no temc lock held, so it may call temcGetDeviceError.
@@ -403,7 +417,7 @@ int32_t temcGetDevice1i(TEMCDevice device, const char *name);
 // # Safety
 // `func` must be safe to call with `user_ptr` from any thread that uses the device, until
 // it is replaced or the device is gone.
-void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void *user_ptr);
+TEMC_API void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void *user_ptr);
 
 // Returns the first error not yet queried by the calling thread (errors are kept per
 // thread, as in OIDN) and clears it; `out_message` (may be NULL)
@@ -413,30 +427,35 @@ void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction func, void 
 //
 // # Safety
 // `out_message` must be NULL or writable.
-TEMCError temcGetDeviceError(TEMCDevice device, const char **out_message);
+TEMC_API TEMCError temcGetDeviceError(TEMCDevice device, const char **out_message);
 
 // Creates a zeroed host buffer of `byte_size` bytes.
-TEMCBuffer temcNewBuffer(TEMCDevice device, uintptr_t byte_size);
+TEMC_API TEMCBuffer temcNewBuffer(TEMCDevice device, uintptr_t byte_size);
 
 // Creates a buffer with a storage mode; every mode is host memory on the CPU device (the
 // host may use temcGetBufferData for all of them).
-TEMCBuffer temcNewBufferWithStorage(TEMCDevice device, uintptr_t byte_size, TEMCStorage storage);
+TEMC_API
+TEMCBuffer temcNewBufferWithStorage(TEMCDevice device,
+                                    uintptr_t byte_size,
+                                    TEMCStorage storage);
 
 // Creates a buffer over the caller's memory (no copy).
 //
 // # Safety
 // `ptr` must be valid for reads and writes of `byte_size` bytes for the buffer's lifetime
 // (until its last release, and while a filter has an image of it set).
-TEMCBuffer temcNewSharedBuffer(TEMCDevice device, void *ptr, uintptr_t byte_size);
+TEMC_API TEMCBuffer temcNewSharedBuffer(TEMCDevice device, void *ptr, uintptr_t byte_size);
 
 // Imports external memory from a file descriptor: not supported on the CPU device (NULL,
 // TEMC_ERROR_INVALID_OPERATION).
+TEMC_API
 TEMCBuffer temcNewSharedBufferFromFD(TEMCDevice device,
                                      TEMCExternalMemoryTypeFlag _fd_type,
                                      int32_t _fd,
                                      uintptr_t _byte_size);
 
 // Imports external memory from a Win32 handle: not supported (as temcNewSharedBufferFromFD).
+TEMC_API
 TEMCBuffer temcNewSharedBufferFromWin32Handle(TEMCDevice device,
                                               TEMCExternalMemoryTypeFlag _handle_type,
                                               void *_handle,
@@ -444,21 +463,22 @@ TEMCBuffer temcNewSharedBufferFromWin32Handle(TEMCDevice device,
                                               uintptr_t _byte_size);
 
 // Wraps a Metal buffer: not supported (as temcNewSharedBufferFromFD).
-TEMCBuffer temcNewSharedBufferFromMetal(TEMCDevice device, void *_buffer);
+TEMC_API TEMCBuffer temcNewSharedBufferFromMetal(TEMCDevice device, void *_buffer);
 
 // Returns the buffer's size in bytes (0 on error).
-uintptr_t temcGetBufferSize(TEMCBuffer buffer);
+TEMC_API uintptr_t temcGetBufferSize(TEMCBuffer buffer);
 
 // Returns the buffer's storage mode.
-TEMCStorage temcGetBufferStorage(TEMCBuffer buffer);
+TEMC_API TEMCStorage temcGetBufferStorage(TEMCBuffer buffer);
 
 // Returns the buffer's data, host-accessible (NULL for an empty buffer or on error).
-void *temcGetBufferData(TEMCBuffer buffer);
+TEMC_API void *temcGetBufferData(TEMCBuffer buffer);
 
 // Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
 //
 // # Safety
 // `dst_host_ptr` must be writable for `byte_size` bytes.
+TEMC_API
 void temcReadBuffer(TEMCBuffer buffer,
                     uintptr_t byte_offset,
                     uintptr_t byte_size,
@@ -468,6 +488,7 @@ void temcReadBuffer(TEMCBuffer buffer,
 //
 // # Safety
 // As temcReadBuffer.
+TEMC_API
 void temcReadBufferAsync(TEMCBuffer buffer,
                          uintptr_t byte_offset,
                          uintptr_t byte_size,
@@ -477,6 +498,7 @@ void temcReadBufferAsync(TEMCBuffer buffer,
 //
 // # Safety
 // `src_host_ptr` must be readable for `byte_size` bytes.
+TEMC_API
 void temcWriteBuffer(TEMCBuffer buffer,
                      uintptr_t byte_offset,
                      uintptr_t byte_size,
@@ -486,17 +508,60 @@ void temcWriteBuffer(TEMCBuffer buffer,
 //
 // # Safety
 // As temcWriteBuffer.
+TEMC_API
 void temcWriteBufferAsync(TEMCBuffer buffer,
                           uintptr_t byte_offset,
                           uintptr_t byte_size,
                           const void *src_host_ptr);
 
 // Adds a reference to the buffer.
-void temcRetainBuffer(TEMCBuffer buffer);
+TEMC_API void temcRetainBuffer(TEMCBuffer buffer);
 
 // Drops a reference; the memory goes with the last one, or later while a filter still
 // has an image of it set.
-void temcReleaseBuffer(TEMCBuffer buffer);
+TEMC_API void temcReleaseBuffer(TEMCBuffer buffer);
+
+// Imports an external semaphore from a POSIX file descriptor: the CPU device imports
+// none, so this returns NULL (TEMC_ERROR_INVALID_ARGUMENT for any type, as
+// "externalSemaphoreTypes" is 0; TEMC_ERROR_INVALID_OPERATION for no type) and `fd`
+// stays the caller's.
+TEMC_API
+TEMCSemaphore temcNewSharedSemaphoreFromFD(TEMCDevice device,
+                                           TEMCExternalSemaphoreTypeFlags fd_type,
+                                           int32_t _fd);
+
+// Imports an external semaphore from a Win32 handle or name: NULL, as
+// temcNewSharedSemaphoreFromFD (and TEMC_ERROR_INVALID_ARGUMENT unless exactly one of
+// `handle` and `name` is given).
+TEMC_API
+TEMCSemaphore temcNewSharedSemaphoreFromWin32Handle(TEMCDevice device,
+                                                    TEMCExternalSemaphoreTypeFlags handle_type,
+                                                    void *handle,
+                                                    const void *name);
+
+// Signals external semaphores after the device's queued work: not supported by the CPU
+// device (TEMC_ERROR_INVALID_OPERATION; no semaphore can exist on it).
+TEMC_API
+void temcSignalSemaphoresAsync(TEMCDevice device,
+                               const TEMCSemaphore *_semaphores,
+                               const uint64_t *_values,
+                               int32_t _num_semaphores);
+
+// Makes the device's later work wait for external semaphores: not supported by the CPU
+// device (TEMC_ERROR_INVALID_OPERATION).
+TEMC_API
+void temcWaitSemaphoresAsync(TEMCDevice device,
+                             const TEMCSemaphore *_semaphores,
+                             const uint64_t *_values,
+                             const uint32_t *_timeouts_ms,
+                             int32_t _num_semaphores);
+
+// Adds a reference to a semaphore: every handle is invalid on the CPU device
+// (TEMC_ERROR_INVALID_ARGUMENT, reported without a device).
+TEMC_API void temcRetainSemaphore(TEMCSemaphore semaphore);
+
+// Drops a reference to a semaphore: as temcRetainSemaphore.
+TEMC_API void temcReleaseSemaphore(TEMCSemaphore semaphore);
 
 // Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
 // given only "albedo" or only "normal" and an "output", it denoises that aux image),
@@ -505,14 +570,14 @@ void temcReleaseBuffer(TEMCBuffer buffer);
 //
 // # Safety
 // `filter_type` must be NULL or a NUL-terminated string.
-TEMCFilter temcNewFilter(TEMCDevice device, const char *filter_type);
+TEMC_API TEMCFilter temcNewFilter(TEMCDevice device, const char *filter_type);
 
 // Adds a reference to the filter.
-void temcRetainFilter(TEMCFilter filter);
+TEMC_API void temcRetainFilter(TEMCFilter filter);
 
 // Drops a reference; the filter (with its hold on the device and buffers) goes with the
 // last one, after any execution still running on another thread.
-void temcReleaseFilter(TEMCFilter filter);
+TEMC_API void temcReleaseFilter(TEMCFilter filter);
 
 // Sets an image stored in a buffer (which the filter holds while the image is set).
 // Names: "color", "albedo", "normal", "depth", "output", "spectral" (see
@@ -520,6 +585,7 @@ void temcReleaseFilter(TEMCFilter filter);
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
+TEMC_API
 void temcSetFilterImage(TEMCFilter filter,
                         const char *name,
                         TEMCBuffer buffer,
@@ -544,6 +610,7 @@ void temcSetFilterImage(TEMCFilter filter,
 // `name` must be NULL or a NUL-terminated string; `dev_ptr` must be valid for reads (and
 // writes, for "output") of the bytes the layout spans, from this call until the image is
 // unset or the filter released.
+TEMC_API
 void temcSetSharedFilterImage(TEMCFilter filter,
                               const char *name,
                               void *dev_ptr,
@@ -558,13 +625,13 @@ void temcSetSharedFilterImage(TEMCFilter filter,
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-void temcUnsetFilterImage(TEMCFilter filter, const char *name);
+TEMC_API void temcUnsetFilterImage(TEMCFilter filter, const char *name);
 
 // Deprecated OIDN 1.x name of temcUnsetFilterImage.
 //
 // # Safety
 // As temcUnsetFilterImage.
-void temcRemoveFilterImage(TEMCFilter filter, const char *name);
+TEMC_API void temcRemoveFilterImage(TEMCFilter filter, const char *name);
 
 // Sets opaque data: "weights" = a temc ONNX model (copied now and at each
 // temcUpdateFilterData).
@@ -572,6 +639,7 @@ void temcRemoveFilterImage(TEMCFilter filter, const char *name);
 // # Safety
 // `name` must be NULL or a NUL-terminated string; `host_ptr` readable for `byte_size`
 // bytes now and at every temcUpdateFilterData until the data is unset.
+TEMC_API
 void temcSetSharedFilterData(TEMCFilter filter,
                              const char *name,
                              void *host_ptr,
@@ -581,19 +649,19 @@ void temcSetSharedFilterData(TEMCFilter filter,
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string; the data's memory still readable.
-void temcUpdateFilterData(TEMCFilter filter, const char *name);
+TEMC_API void temcUpdateFilterData(TEMCFilter filter, const char *name);
 
 // Removes opaque data ("weights").
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-void temcUnsetFilterData(TEMCFilter filter, const char *name);
+TEMC_API void temcUnsetFilterData(TEMCFilter filter, const char *name);
 
 // Deprecated OIDN 1.x name of temcUnsetFilterData.
 //
 // # Safety
 // As temcUnsetFilterData.
-void temcRemoveFilterData(TEMCFilter filter, const char *name);
+TEMC_API void temcRemoveFilterData(TEMCFilter filter, const char *name);
 
 // Sets an int (or bool: OIDN treats them alike) parameter. Bools: "hdr", "srgb",
 // "cleanAux" (accepted; temc uses the aux as given), "directional" (RTLightmap; true is
@@ -602,13 +670,13 @@ void temcRemoveFilterData(TEMCFilter filter, const char *name);
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-void temcSetFilterInt(TEMCFilter filter, const char *name, int32_t value);
+TEMC_API void temcSetFilterInt(TEMCFilter filter, const char *name, int32_t value);
 
 // Sets a bool parameter (as temcSetFilterInt with 0 or 1).
 //
 // # Safety
 // As temcSetFilterInt.
-void temcSetFilterBool(TEMCFilter filter, const char *name, bool value);
+TEMC_API void temcSetFilterBool(TEMCFilter filter, const char *name, bool value);
 
 // Reads an int (or bool) parameter: those of temcSetFilterInt, and the read-only
 // "alignment" and "overlap" (also "tileAlignment", "tileOverlap") of the committed
@@ -616,62 +684,62 @@ void temcSetFilterBool(TEMCFilter filter, const char *name, bool value);
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-int32_t temcGetFilterInt(TEMCFilter filter, const char *name);
+TEMC_API int32_t temcGetFilterInt(TEMCFilter filter, const char *name);
 
 // Reads a bool parameter (as temcGetFilterInt, != 0).
 //
 // # Safety
 // As temcGetFilterInt.
-bool temcGetFilterBool(TEMCFilter filter, const char *name);
+TEMC_API bool temcGetFilterBool(TEMCFilter filter, const char *name);
 
 // Sets a float parameter: "inputScale" (NaN = automatic exposure), its OIDN 1.x alias
 // "hdrScale", "spectralMin", "spectralMax" (nm). Unknown names: a warning.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-void temcSetFilterFloat(TEMCFilter filter, const char *name, float value);
+TEMC_API void temcSetFilterFloat(TEMCFilter filter, const char *name, float value);
 
 // Reads a float parameter ("inputScale" is NaN while automatic); unknown names read 0.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.
-float temcGetFilterFloat(TEMCFilter filter, const char *name);
+TEMC_API float temcGetFilterFloat(TEMCFilter filter, const char *name);
 
 // Deprecated OIDN 1.x name of temcSetFilterBool.
 //
 // # Safety
 // As temcSetFilterInt.
-void temcSetFilter1b(TEMCFilter filter, const char *name, bool value);
+TEMC_API void temcSetFilter1b(TEMCFilter filter, const char *name, bool value);
 
 // Deprecated OIDN 1.x name of temcGetFilterBool.
 //
 // # Safety
 // As temcGetFilterInt.
-bool temcGetFilter1b(TEMCFilter filter, const char *name);
+TEMC_API bool temcGetFilter1b(TEMCFilter filter, const char *name);
 
 // Deprecated OIDN 1.x name of temcSetFilterInt.
 //
 // # Safety
 // As temcSetFilterInt.
-void temcSetFilter1i(TEMCFilter filter, const char *name, int32_t value);
+TEMC_API void temcSetFilter1i(TEMCFilter filter, const char *name, int32_t value);
 
 // Deprecated OIDN 1.x name of temcGetFilterInt.
 //
 // # Safety
 // As temcGetFilterInt.
-int32_t temcGetFilter1i(TEMCFilter filter, const char *name);
+TEMC_API int32_t temcGetFilter1i(TEMCFilter filter, const char *name);
 
 // Deprecated OIDN 1.x name of temcSetFilterFloat.
 //
 // # Safety
 // As temcSetFilterFloat.
-void temcSetFilter1f(TEMCFilter filter, const char *name, float value);
+TEMC_API void temcSetFilter1f(TEMCFilter filter, const char *name, float value);
 
 // Deprecated OIDN 1.x name of temcGetFilterFloat.
 //
 // # Safety
 // As temcGetFilterFloat.
-float temcGetFilter1f(TEMCFilter filter, const char *name);
+TEMC_API float temcGetFilter1f(TEMCFilter filter, const char *name);
 
 // Sets the progress monitor (NULL removes it); returning false from it cancels execution
 // with TEMC_ERROR_CANCELLED and leaves the output untouched.
@@ -679,28 +747,31 @@ float temcGetFilter1f(TEMCFilter filter, const char *name);
 // # Safety
 // `func` must be safe to call with `user_ptr` from temc's worker threads while the filter
 // executes, until it is replaced or the filter released.
+TEMC_API
 void temcSetFilterProgressMonitorFunction(TEMCFilter filter,
                                           TEMCProgressMonitorFunction func,
                                           void *user_ptr);
 
-// Commits the filter's parameters (loads the model). Required after changes.
-void temcCommitFilter(TEMCFilter filter);
+// Commits the filter's parameters (loads the model). Required after changes. Checks what
+// OIDN's commit checks, failing with TEMC_ERROR_INVALID_OPERATION and OIDN's message: no
+// input, no output, an unsupported format (fewer than 3 channels), input and output of
+// different channel counts, images of another size than the output, "hdr" with "srgb",
+// aux images without colour (beyond "RT"'s one-image prefilter). A filter whose commit
+// failed stays uncommitted.
+TEMC_API void temcCommitFilter(TEMCFilter filter);
 
 // Runs the filter. On error nothing is written to the output.
-void temcExecuteFilter(TEMCFilter filter);
+TEMC_API void temcExecuteFilter(TEMCFilter filter);
 
 // temcExecuteFilter; complete on return (the CPU device runs synchronously), so
 // temcSyncDevice has nothing to wait for.
-void temcExecuteFilterAsync(TEMCFilter filter);
+TEMC_API void temcExecuteFilterAsync(TEMCFilter filter);
 
 // Executes on a SYCL queue: not possible on the CPU device (TEMC_ERROR_INVALID_OPERATION).
+TEMC_API
 void temcExecuteSYCLFilterAsync(TEMCFilter filter,
                                 const void *_dep_events,
                                 int32_t _num_dep_events,
                                 void *_done_event);
-
-#ifdef __cplusplus
-}  // extern "C"
-#endif  // __cplusplus
 
 #endif  /* TEMC_H */

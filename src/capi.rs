@@ -57,16 +57,36 @@ fn release_in<T>(registry: &Registry<T>, handle: usize, kind: &str) -> Result<()
     }
 }
 
+/// Part `index` (0 major, 1 minor, 2 patch) of the OIDN API level in Cargo.toml's
+/// `[package.metadata.temc]`, which build.rs checked to be three numbers.
+const fn api_version_part(index: usize) -> u32 {
+    let text = env!("TEMC_OIDN_API_VERSION").as_bytes();
+    let (mut i, mut part, mut value) = (0, 0, 0u32);
+    while i < text.len() {
+        if text[i] == b'.' {
+            part += 1;
+        } else if part == index {
+            value = value * 10 + (text[i] - b'0') as u32;
+        }
+        i += 1;
+    }
+    value
+}
+
+// The version macros live in include/temc_config.h (as OIDN's in config.h), written from
+// Cargo.toml and checked by tests/c_header.rs; cbindgen.toml keeps these out of temc.h.
+
 /// The OIDN API version temc implements: a client's `TEMC_VERSION_MAJOR >= 2` checks
 /// take their 2.x path. (The temc library's own version is the device parameter
 /// "libraryVersion".)
-pub const TEMC_VERSION_MAJOR: u32 = 2;
+pub const TEMC_VERSION_MAJOR: u32 = api_version_part(0);
 /// Minor version of the OIDN API implemented.
-pub const TEMC_VERSION_MINOR: u32 = 3;
+pub const TEMC_VERSION_MINOR: u32 = api_version_part(1);
 /// Patch version of the OIDN API implemented.
-pub const TEMC_VERSION_PATCH: u32 = 0;
+pub const TEMC_VERSION_PATCH: u32 = api_version_part(2);
 /// `major * 10000 + minor * 100 + patch`, as OIDN_VERSION.
-pub const TEMC_VERSION: u32 = 20300;
+pub const TEMC_VERSION: u32 =
+    TEMC_VERSION_MAJOR * 10000 + TEMC_VERSION_MINOR * 100 + TEMC_VERSION_PATCH;
 
 /// Bytes in a physical device's UUID.
 pub const TEMC_UUID_SIZE: usize = 16;
@@ -162,6 +182,35 @@ pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_HEAP: TEMCExternalMemoryTypeFlag 
 /// An NT handle to a Direct3D 12 committed resource.
 pub const TEMC_EXTERNAL_MEMORY_TYPE_FLAG_D3D12_RESOURCE: TEMCExternalMemoryTypeFlag = 1 << 9;
 
+/// External semaphore type flags (OIDN 2.5; for the import functions, which the CPU
+/// device refuses: its "externalSemaphoreTypes" is 0).
+pub type TEMCExternalSemaphoreTypeFlag = u32;
+/// No external semaphore type.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE: TEMCExternalSemaphoreTypeFlag = 0;
+/// An opaque POSIX file descriptor.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_FD: TEMCExternalSemaphoreTypeFlag = 1 << 0;
+/// An opaque NT handle.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32: TEMCExternalSemaphoreTypeFlag = 1 << 1;
+/// An opaque global share (KMT) handle.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32_KMT: TEMCExternalSemaphoreTypeFlag =
+    1 << 2;
+/// An NT handle to a Direct3D 11 fence.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D11_FENCE: TEMCExternalSemaphoreTypeFlag = 1 << 3;
+/// An NT handle to a Direct3D 12 fence.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D12_FENCE: TEMCExternalSemaphoreTypeFlag = 1 << 4;
+/// An NT handle to a Direct3D 11 keyed mutex.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX: TEMCExternalSemaphoreTypeFlag = 1 << 5;
+/// A KMT handle to a Direct3D 11 keyed mutex.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX_KMT: TEMCExternalSemaphoreTypeFlag = 1 << 6;
+/// A POSIX file descriptor of a timeline semaphore.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_FD: TEMCExternalSemaphoreTypeFlag =
+    1 << 7;
+/// An NT handle to a timeline semaphore.
+pub const TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_WIN32:
+    TEMCExternalSemaphoreTypeFlag = 1 << 8;
+/// A set of TEMCExternalSemaphoreTypeFlag values.
+pub type TEMCExternalSemaphoreTypeFlags = u32;
+
 /// Quality modes for the filter's "quality" parameter.
 pub type TEMCQuality = u32;
 /// The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
@@ -200,12 +249,19 @@ pub struct TEMCBufferImpl {
     _opaque: [u8; 0],
 }
 
+/// Opaque semaphore type (OIDN 2.5).
+pub struct TEMCSemaphoreImpl {
+    _opaque: [u8; 0],
+}
+
 /// A device handle.
 pub type TEMCDevice = *mut TEMCDeviceImpl;
 /// A filter handle.
 pub type TEMCFilter = *mut TEMCFilterImpl;
 /// A buffer handle.
 pub type TEMCBuffer = *mut TEMCBufferImpl;
+/// A semaphore handle (the CPU device imports none, so no valid one exists).
+pub type TEMCSemaphore = *mut TEMCSemaphoreImpl;
 
 fn handle<T>(id: usize) -> *mut T {
     std::ptr::without_provenance_mut(id)
@@ -542,6 +598,7 @@ fn get_device_int(d: &DeviceObj, name: &str) -> i32 {
         "setAffinity" => affinity(d) as i32,
         "systemMemorySupported" | "managedMemorySupported" => 1,
         "externalMemoryTypes" => TEMC_EXTERNAL_MEMORY_TYPE_FLAG_NONE as i32,
+        "externalSemaphoreTypes" => TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE as i32,
         other => {
             d.warn(&format!("unknown device parameter {other:?}"));
             0
@@ -607,8 +664,9 @@ pub unsafe extern "C" fn temcSetDevice1i(device: TEMCDevice, name: *const c_char
 /// Reads an int (or bool) device parameter: "type", "version" (TEMC_VERSION),
 /// "versionMajor", "versionMinor", "versionPatch", "libraryVersion" (temc's own,
 /// major*10000+minor*100+patch), "numThreads", "verbose", "setAffinity",
-/// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes". Unknown
-/// names read 0 with a warning.
+/// "systemMemorySupported", "managedMemorySupported", "externalMemoryTypes",
+/// "externalSemaphoreTypes" (0: the CPU device imports no semaphores). Unknown names read
+/// 0 with a warning.
 ///
 /// # Safety
 /// `name` must be NULL or a NUL-terminated string.
@@ -924,6 +982,131 @@ pub extern "C" fn temcRetainBuffer(buffer: TEMCBuffer) {
 #[no_mangle]
 pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
     guarded((), |_| release_in(&BUFFERS, buffer.addr(), "buffer"))
+}
+
+// ---------------------------------------------------------------------------------------
+// Semaphores (OIDN 2.5): the CPU device imports none. Each call fails as OIDN 2.5.1's CPU
+// device makes it fail: the same checks in the same order, codes and messages.
+
+/// The device of a semaphore call, which must be committed (OIDN checks this first).
+fn semaphore_device(c: &mut objects::Call, device: TEMCDevice) -> Outcome<()> {
+    if c.device(device)?.device.is_committed() {
+        Ok(())
+    } else {
+        Err(Failure::operation(
+            "changes to the device are not committed",
+        ))
+    }
+}
+
+/// OIDN's type check: the types must be among the device's "externalSemaphoreTypes" (none).
+fn semaphore_types(types: TEMCExternalSemaphoreTypeFlags) -> Outcome<()> {
+    if types == TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE {
+        Ok(())
+    } else {
+        Err(Failure::invalid(
+            "external semaphore type not supported by the device (\"externalSemaphoreTypes\" is 0)",
+        ))
+    }
+}
+
+/// Imports an external semaphore from a POSIX file descriptor: the CPU device imports
+/// none, so this returns NULL (TEMC_ERROR_INVALID_ARGUMENT for any type, as
+/// "externalSemaphoreTypes" is 0; TEMC_ERROR_INVALID_OPERATION for no type) and `fd`
+/// stays the caller's.
+#[no_mangle]
+pub extern "C" fn temcNewSharedSemaphoreFromFD(
+    device: TEMCDevice,
+    fd_type: TEMCExternalSemaphoreTypeFlags,
+    _fd: i32,
+) -> TEMCSemaphore {
+    guarded(std::ptr::null_mut(), |c| {
+        semaphore_device(c, device)?;
+        semaphore_types(fd_type)?;
+        Err(Failure::operation(
+            "creating a shared semaphore from a POSIX file descriptor is not supported by the device",
+        ))
+    })
+}
+
+/// Imports an external semaphore from a Win32 handle or name: NULL, as
+/// temcNewSharedSemaphoreFromFD (and TEMC_ERROR_INVALID_ARGUMENT unless exactly one of
+/// `handle` and `name` is given).
+#[no_mangle]
+pub extern "C" fn temcNewSharedSemaphoreFromWin32Handle(
+    device: TEMCDevice,
+    handle_type: TEMCExternalSemaphoreTypeFlags,
+    handle: *mut c_void,
+    name: *const c_void,
+) -> TEMCSemaphore {
+    guarded(std::ptr::null_mut(), |c| {
+        semaphore_device(c, device)?;
+        semaphore_types(handle_type)?;
+        if handle.is_null() == name.is_null() {
+            return Err(Failure::invalid(
+                "exactly one of the external semaphore handle and name must be non-null",
+            ));
+        }
+        Err(Failure::operation(
+            "creating a shared semaphore from a Win32 handle is not supported by the device",
+        ))
+    })
+}
+
+/// Signals external semaphores after the device's queued work: not supported by the CPU
+/// device (TEMC_ERROR_INVALID_OPERATION; no semaphore can exist on it).
+#[no_mangle]
+pub extern "C" fn temcSignalSemaphoresAsync(
+    device: TEMCDevice,
+    _semaphores: *const TEMCSemaphore,
+    _values: *const u64,
+    _num_semaphores: i32,
+) {
+    guarded((), |c| {
+        semaphore_device(c, device)?;
+        Err(Failure::operation(
+            "signaling semaphores is not supported by the device",
+        ))
+    })
+}
+
+/// Makes the device's later work wait for external semaphores: not supported by the CPU
+/// device (TEMC_ERROR_INVALID_OPERATION).
+#[no_mangle]
+pub extern "C" fn temcWaitSemaphoresAsync(
+    device: TEMCDevice,
+    _semaphores: *const TEMCSemaphore,
+    _values: *const u64,
+    _timeouts_ms: *const u32,
+    _num_semaphores: i32,
+) {
+    guarded((), |c| {
+        semaphore_device(c, device)?;
+        Err(Failure::operation(
+            "waiting on semaphores is not supported by the device",
+        ))
+    })
+}
+
+fn no_semaphore(semaphore: TEMCSemaphore) -> Outcome<()> {
+    Err(Failure::invalid(if semaphore.is_null() {
+        "semaphore handle is null"
+    } else {
+        "invalid semaphore handle (the CPU device imports no semaphores)"
+    }))
+}
+
+/// Adds a reference to a semaphore: every handle is invalid on the CPU device
+/// (TEMC_ERROR_INVALID_ARGUMENT, reported without a device).
+#[no_mangle]
+pub extern "C" fn temcRetainSemaphore(semaphore: TEMCSemaphore) {
+    guarded((), |_| no_semaphore(semaphore))
+}
+
+/// Drops a reference to a semaphore: as temcRetainSemaphore.
+#[no_mangle]
+pub extern "C" fn temcReleaseSemaphore(semaphore: TEMCSemaphore) {
+    guarded((), |_| no_semaphore(semaphore))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1346,7 +1529,12 @@ pub unsafe extern "C" fn temcSetFilterProgressMonitorFunction(
     })
 }
 
-/// Commits the filter's parameters (loads the model). Required after changes.
+/// Commits the filter's parameters (loads the model). Required after changes. Checks what
+/// OIDN's commit checks, failing with TEMC_ERROR_INVALID_OPERATION and OIDN's message: no
+/// input, no output, an unsupported format (fewer than 3 channels), input and output of
+/// different channel counts, images of another size than the output, "hdr" with "srgb",
+/// aux images without colour (beyond "RT"'s one-image prefilter). A filter whose commit
+/// failed stays uncommitted.
 #[no_mangle]
 pub extern "C" fn temcCommitFilter(filter: TEMCFilter) {
     guarded((), |c| c.filter(filter)?.lock().commit())

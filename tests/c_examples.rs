@@ -87,8 +87,9 @@ fn c_examples_build_and_behave() {
         String::from_utf8_lossy(&cpp.stderr)
     );
 
-    // OIDN 2.x clients, renamed: the C buffer example and a C++ renderer pass (temc.hpp).
-    for prog in ["buffers", "oidn_client"] {
+    // OIDN 2.x clients, renamed: the C buffer example and a C++ renderer pass (temc.hpp);
+    // OIDN's commit-time checks through the C++ wrapper.
+    for prog in ["buffers", "oidn_client", "commit_checks"] {
         let run = Command::new(bin.join(prog)).output().unwrap();
         assert!(
             run.status.success(),
@@ -210,7 +211,9 @@ fn installed_tree_links_through_pkg_config() {
     ] {
         assert!(lib.join(f).exists(), "{f} not installed");
     }
-    assert!(prefix.join("include/temc.h").exists());
+    for h in ["temc.h", "temc_config.h", "temc.hpp"] {
+        assert!(prefix.join("include").join(h).exists(), "{h} not installed");
+    }
     let soname = Command::new("readelf")
         .arg("-d")
         .arg(lib.join("libtemc.so"))
@@ -267,6 +270,121 @@ fn installed_tree_links_through_pkg_config() {
         outs.push(read_pfm(&dir.join(name)).2);
     }
     assert_eq!(outs[0], outs[1], "shared and static builds must agree");
+
+    // Uninstall takes away everything install put there.
+    let status = Command::new("make")
+        .current_dir(root())
+        .args(["--quiet", "uninstall"])
+        .arg(format!("PREFIX={}", prefix.display()))
+        .status()
+        .expect("make");
+    assert!(status.success(), "make uninstall failed");
+    for d in ["include", "lib", "lib/pkgconfig"] {
+        let left: Vec<_> = std::fs::read_dir(prefix.join(d))
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_type().is_ok_and(|t| !t.is_dir()))
+            .map(|e| e.file_name())
+            .collect();
+        assert!(left.is_empty(), "left in {d}: {left:?}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `make lib` leaves a build folder a C program links against and runs from: the
+/// linker finds libtemc.so, and the loader the SONAME libtemc.so.0 it asks for, by
+/// LD_LIBRARY_PATH alone (no rpath, nothing installed).
+#[test]
+fn a_c_program_links_and_runs_from_the_build_folder() {
+    build_examples(); // this test profile's libtemc.so
+    let release = !cfg!(debug_assertions);
+    if !release {
+        return; // `make lib` builds the release library
+    }
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    // A copy of the build folder, so that the other tests' programs, which load
+    // target/release/libtemc.so.0, never see it missing; cargo's part of `make lib` is
+    // done (CARGO=true), the rest of the recipe runs as written.
+    let dir = std::env::temp_dir().join(format!("temc-buildfolder-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let lib = dir.join("release");
+    std::fs::create_dir_all(&lib).unwrap();
+    std::fs::copy(target.join("release/libtemc.so"), lib.join("libtemc.so")).unwrap();
+    let status = Command::new("make")
+        .current_dir(root())
+        .args(["--quiet", "lib", "CARGO=true"])
+        .arg(format!("TARGET_DIR={}", dir.display()))
+        .status()
+        .expect("make");
+    assert!(status.success(), "make lib failed");
+    let link = std::fs::read_link(lib.join("libtemc.so.0")).expect("libtemc.so.0 is a link");
+    assert_eq!(link, Path::new("libtemc.so"));
+
+    let exe = dir.join("denoise");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let out = Command::new(cc)
+        .args(["-std=c99", "-O2", "-Wall", "-Werror", "-I"])
+        .arg(root().join("include"))
+        .arg(root().join("c-examples/denoise.c"))
+        .arg("-o")
+        .arg(&exe)
+        .arg(format!("-L{}", lib.display()))
+        .args(["-ltemc", "-lm"])
+        .output()
+        .expect("a C compiler");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let needed = Command::new("readelf")
+        .arg("-d")
+        .arg(&exe)
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&needed.stdout).contains("[libtemc.so.0]"),
+        "the program asks for the SONAME"
+    );
+    let (w, h) = (19, 13);
+    let color: Vec<f32> = (0..w * h * 3).map(|i| (i % 11) as f32 / 11.0).collect();
+    write_pfm(&dir.join("c.pfm"), w, h, &color);
+    let run = |with_path: bool| {
+        let mut cmd = Command::new(&exe);
+        cmd.arg(dir.join("c.pfm"))
+            .args(["-q", "fast", "-o"])
+            .arg(dir.join("o.pfm"))
+            .env_remove("LD_LIBRARY_PATH");
+        if with_path {
+            cmd.env("LD_LIBRARY_PATH", &lib);
+        }
+        cmd.output().unwrap()
+    };
+    // Without the path the loader has no libtemc.so.0 to find (cargo's LD_LIBRARY_PATH is
+    // removed), unless one is installed system-wide.
+    let installed = Command::new("ldconfig")
+        .arg("-p")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("libtemc.so.0"));
+    if !installed {
+        let without = run(false);
+        assert!(
+            !without.status.success()
+                && String::from_utf8_lossy(&without.stderr).contains("libtemc.so.0"),
+            "{}",
+            String::from_utf8_lossy(&without.stderr)
+        );
+    }
+    let with = run(true);
+    assert!(
+        with.status.success(),
+        "{}",
+        String::from_utf8_lossy(&with.stderr)
+    );
+    let (ow, oh, denoised) = read_pfm(&dir.join("o.pfm"));
+    assert_eq!((ow, oh), (w, h));
+    assert!(denoised.iter().all(|v| v.is_finite()));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -335,6 +453,7 @@ fn c_programs_run_clean_under_asan_and_valgrind() {
     );
     check("buffers under ASan", asan("buffers", vec![]));
     check("oidn_client under ASan", asan("oidn_client", vec![]));
+    check("commit_checks under ASan", asan("commit_checks", vec![]));
     // Valgrind's memcheck on the plain builds: no invalid access, nothing definitely or
     // indirectly lost.
     let vg = |prog: &str, args: Vec<std::ffi::OsString>| {
@@ -364,4 +483,65 @@ fn c_programs_run_clean_under_asan_and_valgrind() {
         read_pfm(&dir.join("vg.pfm")).2
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// libtemc.so exports every function OIDN 2.5.1's library does (renamed oidn -> temc), so
+/// an OIDN 2.5 client links; the only extras are OIDN's header-inline functions, which
+/// temc exports as real symbols (the README lists both).
+#[test]
+fn exports_cover_oidn_2_5_1() {
+    build_examples();
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    let lib = target
+        .join(if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        })
+        .join("libtemc.so");
+    let nm = Command::new("nm")
+        .args(["-D", "--defined-only"])
+        .arg(&lib)
+        .output()
+        .expect("nm");
+    let exported: std::collections::BTreeSet<String> = String::from_utf8_lossy(&nm.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .map(str::to_string)
+        .collect();
+    let oidn = std::fs::read_to_string(root().join("tests/data/oidn-2.5.1-exports.txt")).unwrap();
+    let wanted: std::collections::BTreeSet<String> = oidn
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.is_empty())
+        .map(|l| l.replacen("oidn", "temc", 1))
+        .collect();
+    assert_eq!(wanted.len(), 70, "OIDN 2.5.1 exports 70 functions");
+    let missing: Vec<_> = wanted.difference(&exported).collect();
+    assert!(
+        missing.is_empty(),
+        "OIDN 2.5.1 functions temc lacks: {missing:?}"
+    );
+    let extra: Vec<_> = exported.difference(&wanted).map(String::as_str).collect();
+    assert_eq!(
+        extra,
+        [
+            "temcGetDevice1b",
+            "temcGetDevice1i",
+            "temcGetDeviceUInt",
+            "temcGetFilter1b",
+            "temcGetFilter1f",
+            "temcGetFilter1i",
+            "temcGetPhysicalDeviceUInt",
+            "temcRemoveFilterData",
+            "temcRemoveFilterImage",
+            "temcSetDevice1b",
+            "temcSetDevice1i",
+            "temcSetDeviceUInt",
+            "temcSetFilter1b",
+            "temcSetFilter1f",
+            "temcSetFilter1i",
+        ],
+        "exports beyond OIDN's: only its header-inline functions"
+    );
 }

@@ -86,7 +86,9 @@ fn rt_filters_have_oidns_defaults_and_parameter_rules() {
     seti(f, "quality", 3);
     assert_eq!(error(d).0, TEMC_ERROR_INVALID_ARGUMENT);
 
-    // alignment and overlap come from the committed model.
+    // alignment and overlap come from the committed model. (hdr with srgb would fail the
+    // commit, as in OIDN.)
+    unsafe { temcSetFilterBool(f, c("srgb").as_ptr(), false) };
     let (w, h) = (24, 16);
     let color = image(w, h);
     let mut out = vec![0f32; w * h * 3];
@@ -143,7 +145,11 @@ fn devices_report_oidn_2x_and_refuse_gpus_as_unsupported_hardware() {
     let d = temcNewDeviceByID(0);
     assert!(!d.is_null());
     let get = |n: &str| unsafe { temcGetDeviceInt(d, c(n).as_ptr()) };
-    assert_eq!(get("version"), 20300);
+    assert_eq!(get("version"), TEMC_VERSION as i32);
+    assert_eq!(
+        TEMC_VERSION, 20300,
+        "OIDN 2.3's API (Cargo.toml's oidn-api-version)"
+    );
     assert_eq!(get("versionMajor"), 2);
     assert_eq!(get("type"), TEMC_DEVICE_TYPE_CPU as i32);
     unsafe { temcSetDeviceBool(d, c("setAffinity").as_ptr(), false) };
@@ -495,5 +501,259 @@ fn a_huge_thread_count_is_capped_at_the_cores() {
     assert_eq!(code, TEMC_ERROR_NONE, "{msg}");
     assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
     temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+/// OIDN's checks at commit (core/unet_filter.cpp): each misconfigured filter fails
+/// `temcCommitFilter` with TEMC_ERROR_INVALID_OPERATION and OIDN's message, execute then
+/// refuses it and writes nothing, and the fixed filter commits and runs.
+#[test]
+fn commit_refuses_what_oidn_refuses() {
+    let (w, h) = (24, 16);
+    let color = image(w, h);
+    let half: Vec<u16> = color
+        .iter()
+        .map(|&v| half::f16::from_f32(v).to_bits())
+        .collect();
+    let aux = vec![0.5f32; w * h * 3];
+    let d = device();
+    type Setup<'a> = &'a dyn Fn(TEMCFilter, *mut f32);
+    let cases: [(&str, &str, Setup); 11] = [
+        ("RT", "input image not specified", &|f, out| {
+            set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h)
+        }),
+        ("RT", "output image not specified", &|f, _| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h)
+        }),
+        ("TEMC2", "output image not specified", &|f, _| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h)
+        }),
+        ("RT", "unsupported input image format", &|f, out| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "normal", aux.as_ptr(), TEMC_FORMAT_FLOAT2, w, h);
+            set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h);
+        }),
+        ("RT", "unsupported output image format", &|f, out| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "output", out, TEMC_FORMAT_HALF, w, h);
+        }),
+        (
+            "RT",
+            "input/output image channel count mismatch",
+            &|f, out| {
+                set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+                set_image(f, "output", out, TEMC_FORMAT_FLOAT4, w, h);
+            },
+        ),
+        ("RT", "image size mismatch", &|f, out| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "albedo", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w, h - 1);
+            set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h);
+        }),
+        ("TEMC2", "image size mismatch", &|f, out| {
+            set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "depth", aux.as_ptr(), TEMC_FORMAT_FLOAT, w, h);
+            set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w - 2, h);
+        }),
+        (
+            "RT",
+            "hdr and srgb modes cannot be enabled at the same time",
+            &|f, out| {
+                set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+                set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h);
+                seti(f, "hdr", 1);
+                seti(f, "srgb", 1);
+            },
+        ),
+        ("RT", "invalid combination of input features", &|f, out| {
+            set_image(f, "albedo", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "normal", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+            set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h);
+        }),
+        (
+            "RT",
+            "hdr and srgb modes are not supported for normal filtering",
+            &|f, out| {
+                set_image(f, "normal", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+                set_image(f, "output", out, TEMC_FORMAT_FLOAT3, w, h);
+                seti(f, "srgb", 1);
+            },
+        ),
+    ];
+    for (kind, message, setup) in cases {
+        let f = unsafe { temcNewFilter(d, c(kind).as_ptr()) };
+        seti(f, "quality", TEMC_QUALITY_FAST as i32);
+        let mut out = vec![-7f32; w * h * 4];
+        setup(f, out.as_mut_ptr());
+        assert_eq!(
+            error(d),
+            (TEMC_ERROR_NONE, String::new()),
+            "{message}: set-up"
+        );
+        temcCommitFilter(f);
+        let (code, msg) = error(d);
+        assert_eq!(
+            code, TEMC_ERROR_INVALID_OPERATION,
+            "{kind}: {message}: {msg}"
+        );
+        assert!(
+            msg.starts_with(message),
+            "{kind}: expected {message:?}, got {msg:?}"
+        );
+        temcExecuteFilter(f);
+        assert_eq!(
+            error(d).0,
+            TEMC_ERROR_INVALID_OPERATION,
+            "{message}: execute"
+        );
+        assert!(out.iter().all(|&v| v == -7.0), "{message}: output written");
+        temcReleaseFilter(f);
+    }
+
+    // Fixed: half colour with float output (equal channel counts), sizes that agree.
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    let mut out = vec![-7f32; w * h * 3];
+    let p = out.as_mut_ptr();
+    set_image(
+        f,
+        "color",
+        half.as_ptr() as *const f32,
+        TEMC_FORMAT_HALF3,
+        w,
+        h,
+    );
+    set_image(f, "albedo", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w + 1, h);
+    set_image(f, "output", p, TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    assert_eq!(error(d).0, TEMC_ERROR_INVALID_OPERATION);
+    set_image(f, "albedo", aux.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d), (TEMC_ERROR_NONE, String::new()));
+    assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
+    temcReleaseFilter(f);
+
+    // "directional" (RTLightmap) cannot be set at all: temc has no directional model, so
+    // OIDN's "directional with hdr/srgb" check has nothing to refuse.
+    let l = unsafe { temcNewFilter(d, c("RTLightmap").as_ptr()) };
+    seti(l, "directional", 1);
+    assert_eq!(error(d).0, TEMC_ERROR_INVALID_ARGUMENT);
+    assert_eq!(geti(l, "directional"), 0);
+    temcReleaseFilter(l);
+    temcReleaseDevice(d);
+}
+
+/// OIDN 2.5's semaphore calls fail as OIDN 2.5.1's CPU device makes them fail (probed
+/// through pip's pyoidn): the same checks in the same order, codes and messages; the
+/// device imports no semaphore types, and a file descriptor offered stays the caller's.
+#[test]
+fn semaphores_fail_as_on_oidns_cpu_device() {
+    use std::io::Write;
+    use std::os::fd::AsRawFd;
+
+    let d = temcNewDevice(TEMC_DEVICE_TYPE_CPU);
+    let get = |n: &str| unsafe { temcGetDeviceInt(d, c(n).as_ptr()) };
+    assert!(
+        temcNewSharedSemaphoreFromFD(d, TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_FD, 3).is_null()
+    );
+    assert_eq!(
+        error(d),
+        (
+            TEMC_ERROR_INVALID_OPERATION,
+            "changes to the device are not committed".into()
+        )
+    );
+    temcCommitDevice(d);
+    assert_eq!(get("externalSemaphoreTypes"), 0);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/null")
+        .unwrap();
+    let fd = file.as_raw_fd();
+    let unsupported = "external semaphore type not supported by the device";
+    for t in [
+        TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_FD,
+        TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_FD,
+        TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32,
+    ] {
+        assert!(temcNewSharedSemaphoreFromFD(d, t, fd).is_null());
+        let (code, msg) = error(d);
+        assert_eq!(code, TEMC_ERROR_INVALID_ARGUMENT, "type {t}");
+        assert!(msg.starts_with(unsupported), "{msg}");
+    }
+    assert!(temcNewSharedSemaphoreFromFD(d, TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE, fd).is_null());
+    assert_eq!(
+        error(d),
+        (
+            TEMC_ERROR_INVALID_OPERATION,
+            "creating a shared semaphore from a POSIX file descriptor is not supported by the device"
+                .into()
+        )
+    );
+    file.write_all(b"the descriptor is still open").unwrap();
+
+    // Non-NULL stand-ins for a handle and a name: never dereferenced.
+    let h = std::ptr::without_provenance_mut::<c_void>(0x10);
+    let n = std::ptr::without_provenance::<c_void>(0x20);
+    let none = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE;
+    let exactly_one = "exactly one of the external semaphore handle and name must be non-null";
+    for (t, handle, name, code, message) in [
+        (
+            none,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            TEMC_ERROR_INVALID_ARGUMENT,
+            exactly_one,
+        ),
+        (none, h, n, TEMC_ERROR_INVALID_ARGUMENT, exactly_one),
+        (
+            none,
+            h,
+            std::ptr::null(),
+            TEMC_ERROR_INVALID_OPERATION,
+            "creating a shared semaphore from a Win32 handle is not supported by the device",
+        ),
+        (
+            TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D12_FENCE,
+            h,
+            std::ptr::null(),
+            TEMC_ERROR_INVALID_ARGUMENT,
+            unsupported,
+        ),
+    ] {
+        assert!(temcNewSharedSemaphoreFromWin32Handle(d, t, handle, name).is_null());
+        let (got, msg) = error(d);
+        assert_eq!(got, code, "{msg}");
+        assert!(msg.starts_with(message), "{msg}");
+    }
+
+    let s = [std::ptr::null_mut::<TEMCSemaphoreImpl>()];
+    temcSignalSemaphoresAsync(d, s.as_ptr(), std::ptr::null(), 1);
+    assert_eq!(
+        error(d),
+        (
+            TEMC_ERROR_INVALID_OPERATION,
+            "signaling semaphores is not supported by the device".into()
+        )
+    );
+    temcWaitSemaphoresAsync(d, std::ptr::null(), std::ptr::null(), std::ptr::null(), 0);
+    assert_eq!(
+        error(d),
+        (
+            TEMC_ERROR_INVALID_OPERATION,
+            "waiting on semaphores is not supported by the device".into()
+        )
+    );
+    // No semaphore handle is valid; these errors have no device.
+    temcRetainSemaphore(std::ptr::null_mut());
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    temcReleaseSemaphore(std::ptr::without_provenance_mut(0x30));
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    temcSignalSemaphoresAsync(std::ptr::null_mut(), std::ptr::null(), std::ptr::null(), 0);
+    assert_eq!(error(std::ptr::null_mut()).0, TEMC_ERROR_INVALID_ARGUMENT);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
     temcReleaseDevice(d);
 }

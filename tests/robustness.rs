@@ -611,8 +611,29 @@ fn a_model_with_an_undefined_graph_output_is_refused() {
             bytes.len(),
         );
     }
+    // Images that pass the commit-time checks, so the model is what fails.
+    let mut out = vec![0f32; 8 * 8 * 3];
+    for (name, p) in [
+        ("color", color.as_ptr() as *mut f32),
+        ("output", out.as_mut_ptr()),
+    ] {
+        // SAFETY: both images outlive the filter.
+        unsafe {
+            temcSetSharedFilterImage(
+                cf,
+                c(name).as_ptr(),
+                p as *mut _,
+                TEMC_FORMAT_FLOAT3,
+                8,
+                8,
+                0,
+                0,
+                0,
+            )
+        };
+    }
     temcCommitFilter(cf);
-    assert_ne!(c_error(d), TEMC_ERROR_NONE);
+    assert_eq!(c_error(d), TEMC_ERROR_INVALID_ARGUMENT, "the model error");
     temcReleaseFilter(cf);
     temcReleaseDevice(d);
 }

@@ -408,29 +408,106 @@ impl FilterState {
         &mut self.filter
     }
 
+    /// OIDN's checks at commit (core/unet_filter.cpp, `checkParams` and the choice of
+    /// weights), in its order, with its error code (INVALID_OPERATION) and messages, so a
+    /// misconfigured filter fails where it fails with OIDN rather than at execute.
+    /// "spectral" counts as colour; "depth" is checked for size like the aux images.
+    fn check_params(&self, hdr: bool) -> Outcome<()> {
+        let image = |n: &str| self.images.get(n).map(|i| i.layout);
+        let color = image("color").or(image("spectral").map(|l| Layout {
+            // The colour temc makes from the bands.
+            format: Format::Float3,
+            ..l
+        }));
+        let (albedo, normal) = (image("albedo"), image("normal"));
+        let Some(input) = color.or(albedo).or(normal) else {
+            return Err(Failure::operation("input image not specified"));
+        };
+        let output =
+            image("output").ok_or_else(|| Failure::operation("output image not specified"))?;
+        // OIDN also takes 1- and 2-channel images; temc's networks need RGB (a fourth
+        // channel, as in FLOAT4, is ignored).
+        for (name, l) in [("color", color), ("albedo", albedo), ("normal", normal)] {
+            if let Some(l) = l.filter(|l| l.format.channels() < 3) {
+                return Err(Failure::operation(format!(
+                    "unsupported input image format: {name:?} is {:?}, temc needs 3 channels",
+                    l.format
+                )));
+            }
+        }
+        if output.format.channels() < 3 {
+            return Err(Failure::operation(format!(
+                "unsupported output image format: {:?}, temc needs 3 channels",
+                output.format
+            )));
+        }
+        if input.format.channels() != output.format.channels() {
+            return Err(Failure::operation(format!(
+                "input/output image channel count mismatch: {} and {}",
+                input.format.channels(),
+                output.format.channels()
+            )));
+        }
+        for name in ["color", "spectral", "albedo", "normal", "depth"] {
+            if let Some(l) = image(name) {
+                if (l.width, l.height) != (output.width, output.height) {
+                    return Err(Failure::operation(format!(
+                        "image size mismatch: {name:?} is {}x{}, \"output\" is {}x{}",
+                        l.width, l.height, output.width, output.height
+                    )));
+                }
+            }
+        }
+        // "directional" cannot be true in temc (setting it is refused), so only the
+        // second of OIDN's two mode checks can fire; both are kept in its order.
+        if self.directional && (hdr || self.srgb) {
+            return Err(Failure::operation(
+                "directional and hdr/srgb modes cannot be enabled at the same time",
+            ));
+        }
+        if hdr && self.srgb {
+            return Err(Failure::operation(
+                "hdr and srgb modes cannot be enabled at the same time",
+            ));
+        }
+        Ok(())
+    }
+
     /// Decides the path, stages colour if needed and loads the model.
     pub fn commit(&mut self) -> Outcome<()> {
         self.mode = None;
+        let hdr = self.filter.get_int("hdr")? != 0;
+        self.check_params(hdr)?;
         let has = |n: &str| self.images.contains_key(n);
-        let mode = if self.api == Api::Rt
-            && !has("color")
-            && !has("spectral")
-            && has("output")
-            && has("albedo") != has("normal")
-        {
-            Mode::Prefilter(if has("albedo") {
-                AuxKind::Albedo
-            } else {
-                AuxKind::Normal
-            })
+        let mode = if !has("color") && !has("spectral") {
+            // Aux images alone: OIDN's "RT" denoises one of them; nothing else does.
+            match (self.api, has("albedo"), has("normal")) {
+                (Api::Rt, true, false) if hdr => {
+                    return Err(Failure::operation(
+                        "hdr mode is not supported for albedo filtering",
+                    ))
+                }
+                (Api::Rt, true, false) => Mode::Prefilter(AuxKind::Albedo),
+                (Api::Rt, false, true) if hdr || self.srgb => {
+                    return Err(Failure::operation(
+                        "hdr and srgb modes are not supported for normal filtering",
+                    ))
+                }
+                (Api::Rt, false, true) => Mode::Prefilter(AuxKind::Normal),
+                _ => {
+                    return Err(Failure::operation(
+                        "invalid combination of input features (set \"color\", or for \"RT\" \
+                         only one of \"albedo\" and \"normal\")",
+                    ))
+                }
+            }
         } else {
             if has("color") && has("spectral") {
                 return Err(Failure::invalid("set \"color\" or \"spectral\", not both"));
             }
-            let hdr = self.filter.get_int("hdr")? != 0;
             Mode::Denoise {
                 spectral: has("spectral"),
-                srgb: self.srgb && !hdr && has("color"),
+                srgb: self.srgb && has("color"),
             }
         };
         if let Mode::Denoise { spectral, srgb } = mode {
@@ -586,13 +663,8 @@ impl FilterState {
             "normal"
         };
         let (src, out) = (&self.images[name], &self.images["output"]);
+        // Sizes were checked at commit, and images cannot change without another commit.
         let (l, o) = (src.layout, out.layout);
-        if (l.width, l.height) != (o.width, o.height) {
-            return Err(Failure::invalid(format!(
-                "image \"output\" is {}x{}, {name:?} is {}x{}",
-                o.width, o.height, l.width, l.height
-            )));
-        }
         let mut input = Vec::with_capacity(l.width * l.height * 3);
         for y in 0..l.height {
             for x in 0..l.width {

@@ -202,6 +202,12 @@ impl Device {
         Ok(())
     }
 
+    /// Whether [`Self::commit`] has built the thread pool (the C ABI refuses some calls
+    /// on an uncommitted device, as OIDN does).
+    pub fn is_committed(&self) -> bool {
+        self.lock().pool.is_some()
+    }
+
     fn pool(&self) -> Result<Arc<rayon::ThreadPool>, Error> {
         self.lock()
             .pool
