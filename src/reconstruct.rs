@@ -1123,26 +1123,38 @@ mod tests {
         }
     }
 
-    /// `cargo test --release --lib reconstruct::tests::bench -- --ignored --nocapture`
+    /// `cargo test --release --lib reconstruct::tests::bench -- --ignored --nocapture`: one
+    /// thread, without and with the fixed range term.
     #[test]
     #[ignore]
     fn bench_1080p_three_levels_of_5x5() {
         // 1920x1088 streams 560 MB of logits from memory; a 256x256 tile stays in cache.
         for (h, w, reps) in [(1088, 1920, 5), (256, 256, 100)] {
             let mut rng = Rng(8);
-            let p = params(3, 5);
             let rgb = rng.vec(3 * h * w, |r| r.uniform());
-            let f = logits(&mut rng, &p, h, w, 2.0);
+            let f = logits(&mut rng, &params(3, 5), h, w, 2.0);
             let fr: Vec<&[f32]> = f.iter().map(|v| v.as_slice()).collect();
-            let mut best = f64::INFINITY;
+            // Alternated, so both variants see the same machine load.
+            let mut best = [f64::INFINITY; 2];
             for _ in 0..reps {
-                let t = std::time::Instant::now();
-                let out = reconstruct(&p, &rgb, None, &fr, h, w).unwrap();
-                best = best.min(t.elapsed().as_secs_f64());
-                std::hint::black_box(out);
+                for (fixed_range, b) in [false, true].into_iter().zip(&mut best) {
+                    let p = Params {
+                        fixed_range,
+                        ..params(3, 5)
+                    };
+                    let t = std::time::Instant::now();
+                    let out = reconstruct(&p, &rgb, None, &fr, h, w).unwrap();
+                    *b = b.min(t.elapsed().as_secs_f64());
+                    std::hint::black_box(out);
+                }
             }
-            let ns = best * 1e9 / (h * w) as f64;
-            println!("reconstruct {w}x{h}, 3 levels of 5x5: {ns:.1} ns/pixel");
+            let ns = best.map(|b| b * 1e9 / (h * w) as f64);
+            println!(
+                "reconstruct {w}x{h}, 3 levels of 5x5: {:.1} ns/pixel, with the fixed range term {:.1} ({:.2}x)",
+                ns[0],
+                ns[1],
+                ns[1] / ns[0]
+            );
         }
     }
 }

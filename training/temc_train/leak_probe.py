@@ -16,6 +16,7 @@ over them (1 is right; a leak lifts it).
 
 import argparse
 import math
+import os
 
 import numpy as np
 import torch
@@ -112,7 +113,18 @@ def main(argv=None):
     if a.oidn:
         rows["OIDN 2.5 high"] = evaluate_oidn(scenes)
     spps = sorted({spp for r in rows.values() for spp in r})
-    lines = table(rows, spps)
+    lines = [
+        "# The fixed range term against lamp leaks (issue 36, item 1)", "",
+        f"Regenerate: `cd training && python -m temc_train.leak_probe --data {a.data} --run {a.run}"
+        + (" --oidn" if a.oidn else "") + f" --out {a.out}`.", "",
+        f"{len(scenes)} test scenes of `{os.path.basename(os.path.normpath(a.data))}`, whole images, "
+        "full aux, through the network of the run's checkpoint and reconstruct.py (the core's "
+        "function) with the keep-mean stage; only the fixed range term differs between the temc "
+        "rows. RelMSE: geometric mean over scenes; dE ITP: mean; worst mean: the worst |image mean "
+        "/ reference mean - 1|; near share: the part of each image's RelMSE within "
+        f"{NEAR} px of a visible emitter (reference luminance >= {BRIGHT:g} at the automatic "
+        "exposure), mean over scenes; near x: the worst scene's 99th percentile of output / "
+        "reference luminance over those pixels (1 is right, a leak lifts it).", ""] + table(rows, spps)
     print("\n".join(lines))
     if a.out:
         with open(a.out, "w") as f:

@@ -24,7 +24,10 @@ from .models import ARCH_NAMES, label
 
 HARD = ("named-cornell-spiky", "named-prism", "named-firefly", "named-dark-room", "named-laser")
 # The default page: the accuracy report of the project's own data set.
-PAGE = {"title": "Accuracy against time", "command": "scripts/accuracy-report", "img": "img/accuracy"}
+PAGE = {"title": "Accuracy against time", "command": "scripts/accuracy-report", "img": "img/accuracy",
+        "about": "every hand-written and held-out-family test scene, and the generator's first "
+                 "test seeds by index, `--generated`",
+        "renders": "the data set's progressive renders (2 threads)"}
 
 
 def model_label(temc, path):
@@ -185,6 +188,8 @@ def family_section(m, denoisers, spps) -> list:
     """The targets' ratios to OIDN high again, per kind of test scene: a model that has
     learnt its generator rather than denoising wins on the last and not on the first two."""
     ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
+    if not any(r["scene"].startswith(prefix) for r in m.rows for _, prefix in FAMILIES):
+        return []  # another renderer's family: no scene is of these kinds
     md = ["## Targets per kind of test scene", "",
           "The same ratios to OIDN high on each kind of test scene alone: scenes of other "
           "families (hand-written, and the generator's held-out families: no training scene "
@@ -398,18 +403,17 @@ def machine():
     return f"{cpu}, {os.cpu_count()} logical CPUs, {time.strftime('%Y-%m-%d')}"
 
 
-def header(tests, manifest, threads, where, title="Accuracy against time",
-           command="scripts/accuracy-report"):
-    return [f"# {title}", "",
-            f"Regenerate with `{command}` (one command; every number below comes from that run).",
-            f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}; every hand-written and "
-            "held-out-family test scene, and the generator's first test seeds by index, `--generated`), "
+def header(tests, manifest, threads, where, page=None):
+    page = page or PAGE
+    return [f"# {page['title']}", "",
+            f"Regenerate with `{page['command']}` (one command; every number below comes from that run).",
+            f"Test scenes: {len(tests)} ({', '.join(r['name'] for r in tests)}; {page['about']}), "
             f"{manifest['options']['size']}² pixels, "
             f"reference {manifest['options']['ref_spp']} spp. Denoising on {threads} threads of this machine; "
             "OIDN 2.5 through pyoidn (HDR, albedo + normal) measured in the same run. "
             f"Machine: {where}. Denoise seconds "
             "are execution only (model loading excluded, for temc and OIDN alike); render seconds come "
-            "from the data set's progressive renders (2 threads), scaled by spp.", ""]
+            f"from {page['renders']}, scaled by spp.", ""]
 
 
 def verdict_section(m, spps, labels):
@@ -529,7 +533,7 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra, page=
     page = page or PAGE
     spps = sorted({r["spp"] for r in m.rows})
     scenes = [r["name"] for r in tests]
-    return (header(tests, manifest, threads, where, page["title"], page["command"])
+    return (header(tests, manifest, threads, where, page)
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
             + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
             + per_scene_section(m, denoisers, spps, scenes)
@@ -557,6 +561,9 @@ def parse_args(argv):
     ap.add_argument("--command", default=PAGE["command"], help="the command the page names for "
                     "regenerating it")
     ap.add_argument("--img", default=PAGE["img"], help="the image folder, relative to --out's")
+    ap.add_argument("--about", default=PAGE["about"], help="what the test scenes are (the header)")
+    ap.add_argument("--renders", default=PAGE["renders"],
+                    help="where the render seconds come from (the header)")
     ap.add_argument("--strips", default=",".join(HARD),
                     help="comma-separated test scenes whose 16-spp results become image strips")
     ap.add_argument("--generated", type=int, default=32,
