@@ -1,7 +1,9 @@
 // OIDN's checks at commit, through the C++ wrapper (temc.hpp) as an oidn.hpp client sees
 // them: each misconfigured "RT" filter fails filter.commit() with Error::InvalidOperation
 // and OIDN's message (core/unet_filter.cpp), execute then refuses to run and leaves the
-// output untouched, and fixing the configuration makes commit and execute succeed.
+// output untouched, and fixing the configuration makes commit and execute succeed. Also
+// OIDN's committed-device rule for new filters and buffers, and OIDN 2.5's semaphore calls
+// (SemaphoreRef, DeviceRef::newSemaphore, signal/waitSemaphore(s)Async) on the CPU device.
 //   commit_checks          (exit status 0 when every check holds)
 #include "temc.hpp"
 
@@ -143,6 +145,68 @@ int main() {
       std::fprintf(stderr, "FAIL after the fix: output %g\n", im.output[0]);
       ++failures;
     }
+  }
+
+  // OIDN wants a committed device before buffers and filters (oidnTest's "single filter"
+  // checks it): InvalidOperation, and again after a change that needs another commit.
+  {
+    temc::DeviceRef fresh = temc::newDevice(temc::DeviceType::CPU);
+    if (fresh.newFilter("RT") || fresh.newBuffer(64)) {
+      std::fprintf(stderr, "FAIL uncommitted device: a filter or buffer was made\n");
+      ++failures;
+    }
+    expectError(fresh, temc::Error::InvalidOperation, "changes to the device are not committed",
+                "filter on an uncommitted device");
+    fresh.commit();
+    if (!fresh.newFilter("RT") || !fresh.newBuffer(64)) {
+      std::fprintf(stderr, "FAIL committed device: no filter or buffer\n");
+      ++failures;
+    }
+    expectError(fresh, temc::Error::None, nullptr, "filter on the committed device");
+    fresh.set("numThreads", 1);
+    if (fresh.newFilter("RT")) {
+      std::fprintf(stderr, "FAIL changed device: a filter was made before the recommit\n");
+      ++failures;
+    }
+    expectError(fresh, temc::Error::InvalidOperation, "changes to the device are not committed",
+                "filter after numThreads");
+  }
+
+  // OIDN 2.5's semaphores through the wrapper, as a Vulkan/D3D interop client calls them:
+  // the CPU device imports none, so every call fails as OIDN's CPU device makes it fail.
+  {
+    using temc::ExternalSemaphoreTypeFlag;
+    const temc::ExternalSemaphoreTypeFlags types =
+        device.get<temc::ExternalSemaphoreTypeFlags>("externalSemaphoreTypes");
+    expectError(device, temc::Error::None, nullptr, "externalSemaphoreTypes");
+    if (types || (types & ExternalSemaphoreTypeFlag::TimelineSemaphoreFD)) {
+      std::fprintf(stderr, "FAIL externalSemaphoreTypes is not empty\n");
+      ++failures;
+    }
+    temc::SemaphoreRef timeline =
+        device.newSemaphore(ExternalSemaphoreTypeFlag::TimelineSemaphoreFD, 3);
+    expectError(device, temc::Error::InvalidArgument,
+                "external semaphore type not supported by the device", "semaphore from FD");
+    int handle = 0;
+    temc::SemaphoreRef fence = device.newSemaphore(
+        temc::ExternalSemaphoreTypeFlags(ExternalSemaphoreTypeFlag::D3D12Fence), &handle,
+        nullptr);
+    expectError(device, temc::Error::InvalidArgument,
+                "external semaphore type not supported by the device", "semaphore from handle");
+    if (timeline || fence) {
+      std::fprintf(stderr, "FAIL a semaphore was imported\n");
+      ++failures;
+    }
+    device.waitSemaphoreAsync(timeline, 1);
+    expectError(device, temc::Error::InvalidOperation,
+                "waiting on semaphores is not supported by the device", "waitSemaphoreAsync");
+    device.signalSemaphoreAsync(timeline, 2);
+    expectError(device, temc::Error::InvalidOperation,
+                "signaling semaphores is not supported by the device", "signalSemaphoreAsync");
+    device.waitSemaphoresAsync({timeline, fence}, {1, 2}, {10, 10});
+    expectError(device, temc::Error::InvalidOperation, nullptr, "waitSemaphoresAsync");
+    device.signalSemaphoresAsync({timeline, fence});
+    expectError(device, temc::Error::InvalidOperation, nullptr, "signalSemaphoresAsync");
   }
 
   if (failures == 0) std::printf("commit checks: all hold\n");

@@ -341,7 +341,7 @@ TEMC_API void temcReleaseDevice(TEMCDevice device);
 TEMC_API void temcCommitDevice(TEMCDevice device);
 
 // Waits for the device's asynchronous operations: they all complete before returning, so
-// this only checks the handle.
+// this only checks the handle (and, as OIDN, that the device is committed).
 TEMC_API void temcSyncDevice(TEMCDevice device);
 
 // Sets an int (or bool) device parameter: "numThreads" (0 = all cores; more than the
@@ -429,17 +429,18 @@ TEMC_API void temcSetDeviceErrorFunction(TEMCDevice device, TEMCErrorFunction fu
 // `out_message` must be NULL or writable.
 TEMC_API TEMCError temcGetDeviceError(TEMCDevice device, const char **out_message);
 
-// Creates a zeroed host buffer of `byte_size` bytes.
+// Creates a zeroed host buffer of `byte_size` bytes. The device must be committed
+// (TEMC_ERROR_INVALID_OPERATION otherwise, as in OIDN).
 TEMC_API TEMCBuffer temcNewBuffer(TEMCDevice device, uintptr_t byte_size);
 
 // Creates a buffer with a storage mode; every mode is host memory on the CPU device (the
-// host may use temcGetBufferData for all of them).
+// host may use temcGetBufferData for all of them). The device must be committed.
 TEMC_API
 TEMCBuffer temcNewBufferWithStorage(TEMCDevice device,
                                     uintptr_t byte_size,
                                     TEMCStorage storage);
 
-// Creates a buffer over the caller's memory (no copy).
+// Creates a buffer over the caller's memory (no copy). The device must be committed.
 //
 // # Safety
 // `ptr` must be valid for reads and writes of `byte_size` bytes for the buffer's lifetime
@@ -566,7 +567,8 @@ TEMC_API void temcReleaseSemaphore(TEMCSemaphore semaphore);
 // Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
 // given only "albedo" or only "normal" and an "output", it denoises that aux image),
 // "RTLightmap" (TEMC-2 on HDR colour; "directional" must stay false), or temc's
-// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced).
+// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced). The device must be committed
+// (TEMC_ERROR_INVALID_OPERATION otherwise, as in OIDN).
 //
 // # Safety
 // `filter_type` must be NULL or a NUL-terminated string.
@@ -579,7 +581,9 @@ TEMC_API void temcRetainFilter(TEMCFilter filter);
 // last one, after any execution still running on another thread.
 TEMC_API void temcReleaseFilter(TEMCFilter filter);
 
-// Sets an image stored in a buffer (which the filter holds while the image is set).
+// Sets an image stored in a buffer (which the filter holds while the image is set). A
+// NULL or released buffer is TEMC_ERROR_INVALID_ARGUMENT on the filter's device, as in
+// OIDN (temcSetSharedFilterImage with NULL memory unsets the image instead).
 // Names: "color", "albedo", "normal", "depth", "output", "spectral" (see
 // temcSetSharedFilterImage). Strides of 0 mean tightly packed.
 //
@@ -634,7 +638,8 @@ TEMC_API void temcUnsetFilterImage(TEMCFilter filter, const char *name);
 TEMC_API void temcRemoveFilterImage(TEMCFilter filter, const char *name);
 
 // Sets opaque data: "weights" = a temc ONNX model (copied now and at each
-// temcUpdateFilterData).
+// temcUpdateFilterData; NULL with 0 bytes unsets it, as in OIDN). Weights that do not
+// load fail the next temcCommitFilter with TEMC_ERROR_INVALID_OPERATION, as in OIDN.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string; `host_ptr` readable for `byte_size`

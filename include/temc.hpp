@@ -33,7 +33,7 @@
 TEMC_NAMESPACE_BEGIN
 
 // ---------------------------------------------------------------------------------------
-// Flags (a set of ExternalMemoryTypeFlag values)
+// Flags (a set of ExternalMemoryTypeFlag or ExternalSemaphoreTypeFlag values)
 
 template <typename FlagT>
 struct IsFlag {
@@ -115,6 +115,27 @@ struct IsFlag<ExternalMemoryTypeFlag> {
 };
 using ExternalMemoryTypeFlags = Flags<ExternalMemoryTypeFlag>;
 
+/// External semaphore types (OIDN 2.5), for DeviceRef::newSemaphore; the CPU device
+/// imports none ("externalSemaphoreTypes" is 0).
+enum class ExternalSemaphoreTypeFlag : uint32_t {
+  None = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE,
+  OpaqueFD = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_FD,
+  OpaqueWin32 = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32,
+  OpaqueWin32KMT = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_OPAQUE_WIN32_KMT,
+  D3D11Fence = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D11_FENCE,
+  D3D12Fence = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_D3D12_FENCE,
+  KeyedMutex = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX,
+  KeyedMutexKMT = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_KEYED_MUTEX_KMT,
+  TimelineSemaphoreFD = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_FD,
+  TimelineSemaphoreWin32 = TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_WIN32,
+};
+
+template <>
+struct IsFlag<ExternalSemaphoreTypeFlag> {
+  static constexpr bool value = true;
+};
+using ExternalSemaphoreTypeFlags = Flags<ExternalSemaphoreTypeFlag>;
+
 enum class Quality : uint32_t {
   Default = TEMC_QUALITY_DEFAULT,
   Fast = TEMC_QUALITY_FAST,
@@ -194,6 +215,12 @@ template <>
 struct HandleTraits<TEMCBuffer> {
   static void retain(TEMCBuffer h) { temcRetainBuffer(h); }
   static void release(TEMCBuffer h) { temcReleaseBuffer(h); }
+};
+
+template <>
+struct HandleTraits<TEMCSemaphore> {
+  static void retain(TEMCSemaphore h) { temcRetainSemaphore(h); }
+  static void release(TEMCSemaphore h) { temcReleaseSemaphore(h); }
 };
 
 // Owns one reference to a handle; copies retain, moves transfer, destruction releases.
@@ -338,6 +365,19 @@ template <>
 inline float FilterRef::get<float>(const char* name) const { return temcGetFilterFloat(h, name); }
 
 // ---------------------------------------------------------------------------------------
+// Semaphore (OIDN 2.5)
+
+/// An imported external semaphore. temc's CPU device imports none, so
+/// DeviceRef::newSemaphore gives a null one (and an error); the class is here for code
+/// written against OIDN 2.5 to build and take its no-semaphore path.
+class SemaphoreRef : public detail::Ref<TEMCSemaphore> {
+ public:
+  using detail::Ref<TEMCSemaphore>::Ref;
+  using detail::Ref<TEMCSemaphore>::operator=;
+  SemaphoreRef() noexcept = default;
+};
+
+// ---------------------------------------------------------------------------------------
 // Device
 
 /// A device (temc has one kind: the CPU).
@@ -351,7 +391,8 @@ class DeviceRef : public detail::Ref<TEMCDevice> {
   void set(const char* name, int value) { temcSetDeviceInt(h, name, value); }
   void set(const char* name, unsigned int value) { temcSetDeviceUInt(h, name, value); }
 
-  /// Reads a parameter: T is bool, int, unsigned int, DeviceType or ExternalMemoryTypeFlags.
+  /// Reads a parameter: T is bool, int, unsigned int, DeviceType, ExternalMemoryTypeFlags
+  /// or ExternalSemaphoreTypeFlags.
   template <typename T>
   T get(const char* name) const;
 
@@ -390,6 +431,62 @@ class DeviceRef : public detail::Ref<TEMCDevice> {
   }
 
   FilterRef newFilter(const char* type) const { return temcNewFilter(h, type); }
+
+  /// Imports an external semaphore (OIDN 2.5): refused by the CPU device, whose
+  /// "externalSemaphoreTypes" is 0 (a null semaphore and an error; the fd stays yours).
+  SemaphoreRef newSemaphore(ExternalSemaphoreTypeFlags fdType, int fd) const {
+    return temcNewSharedSemaphoreFromFD(
+        h, static_cast<TEMCExternalSemaphoreTypeFlags>(
+               static_cast<ExternalSemaphoreTypeFlags::MaskType>(fdType)),
+        fd);
+  }
+  SemaphoreRef newSemaphore(ExternalSemaphoreTypeFlags handleType, void* handle,
+                            const void* name) const {
+    return temcNewSharedSemaphoreFromWin32Handle(
+        h, static_cast<TEMCExternalSemaphoreTypeFlags>(
+               static_cast<ExternalSemaphoreTypeFlags::MaskType>(handleType)),
+        handle, name);
+  }
+
+  /// Signals semaphores once the work queued so far is done; `values` (empty, or one per
+  /// semaphore) are the timeline/fence values or keyed-mutex keys. No semaphore can exist
+  /// on the CPU device, so this reports TEMC_ERROR_INVALID_OPERATION.
+  void signalSemaphoresAsync(const std::vector<SemaphoreRef>& semaphores,
+                             const std::vector<uint64_t>& values = std::vector<uint64_t>()) {
+    assert(values.empty() || values.size() == semaphores.size());
+    std::vector<TEMCSemaphore> handles = rawSemaphores(semaphores);
+    temcSignalSemaphoresAsync(h, handles.data(), values.empty() ? nullptr : values.data(),
+                              static_cast<int>(handles.size()));
+  }
+  void signalSemaphoreAsync(const SemaphoreRef& semaphore, uint64_t value = 0) {
+    TEMCSemaphore handle = semaphore.getHandle();
+    temcSignalSemaphoresAsync(h, &handle, &value, 1);
+  }
+
+  /// Makes later work wait for semaphores; `values` and `timeoutsMs` are empty or one per
+  /// semaphore. As signalSemaphoresAsync, refused by the CPU device.
+  void waitSemaphoresAsync(const std::vector<SemaphoreRef>& semaphores,
+                           const std::vector<uint64_t>& values = std::vector<uint64_t>(),
+                           const std::vector<uint32_t>& timeoutsMs = std::vector<uint32_t>()) {
+    assert(values.empty() || values.size() == semaphores.size());
+    assert(timeoutsMs.empty() || timeoutsMs.size() == semaphores.size());
+    std::vector<TEMCSemaphore> handles = rawSemaphores(semaphores);
+    temcWaitSemaphoresAsync(h, handles.data(), values.empty() ? nullptr : values.data(),
+                            timeoutsMs.empty() ? nullptr : timeoutsMs.data(),
+                            static_cast<int>(handles.size()));
+  }
+  void waitSemaphoreAsync(const SemaphoreRef& semaphore, uint64_t value = 0) {
+    TEMCSemaphore handle = semaphore.getHandle();
+    temcWaitSemaphoresAsync(h, &handle, &value, nullptr, 1);
+  }
+
+ private:
+  static std::vector<TEMCSemaphore> rawSemaphores(const std::vector<SemaphoreRef>& semaphores) {
+    std::vector<TEMCSemaphore> handles;
+    handles.reserve(semaphores.size());
+    for (const SemaphoreRef& s : semaphores) handles.push_back(s.getHandle());
+    return handles;
+  }
 };
 
 template <>
@@ -408,6 +505,12 @@ template <>
 inline ExternalMemoryTypeFlags DeviceRef::get<ExternalMemoryTypeFlags>(const char* name) const {
   return ExternalMemoryTypeFlags(
       static_cast<ExternalMemoryTypeFlags::MaskType>(temcGetDeviceInt(h, name)));
+}
+template <>
+inline ExternalSemaphoreTypeFlags DeviceRef::get<ExternalSemaphoreTypeFlags>(
+    const char* name) const {
+  return ExternalSemaphoreTypeFlags(
+      static_cast<ExternalSemaphoreTypeFlags::MaskType>(temcGetDeviceInt(h, name)));
 }
 
 /// This thread's global error (device creation, released handles), then cleared.

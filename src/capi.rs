@@ -557,10 +557,24 @@ pub extern "C" fn temcCommitDevice(device: TEMCDevice) {
 }
 
 /// Waits for the device's asynchronous operations: they all complete before returning, so
-/// this only checks the handle.
+/// this only checks the handle (and, as OIDN, that the device is committed).
 #[no_mangle]
 pub extern "C" fn temcSyncDevice(device: TEMCDevice) {
-    guarded((), |c| c.device(device).map(|_| ()))
+    guarded((), |c| committed_device(c, device).map(|_| ()))
+}
+
+/// The device of a call OIDN allows only on a committed device (sync, new buffers, new
+/// filters, semaphores): TEMC_ERROR_INVALID_OPERATION, with OIDN's message, before
+/// commit and after a change that needs another (such as "numThreads").
+fn committed_device(c: &mut objects::Call, device: TEMCDevice) -> Outcome<Arc<DeviceObj>> {
+    let d = c.device(device)?;
+    if d.device.is_committed() {
+        Ok(d)
+    } else {
+        Err(Failure::operation(
+            "changes to the device are not committed",
+        ))
+    }
 }
 
 fn set_device_int(d: &DeviceObj, name: &str, value: i32) -> Outcome<()> {
@@ -781,14 +795,15 @@ fn new_buffer(obj: BufferObj) -> Outcome<TEMCBuffer> {
         .ok_or_else(|| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, "too many buffers"))
 }
 
-/// Creates a zeroed host buffer of `byte_size` bytes.
+/// Creates a zeroed host buffer of `byte_size` bytes. The device must be committed
+/// (TEMC_ERROR_INVALID_OPERATION otherwise, as in OIDN).
 #[no_mangle]
 pub extern "C" fn temcNewBuffer(device: TEMCDevice, byte_size: usize) -> TEMCBuffer {
     temcNewBufferWithStorage(device, byte_size, TEMC_STORAGE_HOST)
 }
 
 /// Creates a buffer with a storage mode; every mode is host memory on the CPU device (the
-/// host may use temcGetBufferData for all of them).
+/// host may use temcGetBufferData for all of them). The device must be committed.
 #[no_mangle]
 pub extern "C" fn temcNewBufferWithStorage(
     device: TEMCDevice,
@@ -796,7 +811,7 @@ pub extern "C" fn temcNewBufferWithStorage(
     storage: TEMCStorage,
 ) -> TEMCBuffer {
     guarded(std::ptr::null_mut(), |c| {
-        let d = c.device(device)?;
+        let d = committed_device(c, device)?;
         let storage = match storage {
             TEMC_STORAGE_UNDEFINED => TEMC_STORAGE_HOST,
             s @ (TEMC_STORAGE_HOST | TEMC_STORAGE_DEVICE | TEMC_STORAGE_MANAGED) => s,
@@ -806,7 +821,7 @@ pub extern "C" fn temcNewBufferWithStorage(
     })
 }
 
-/// Creates a buffer over the caller's memory (no copy).
+/// Creates a buffer over the caller's memory (no copy). The device must be committed.
 ///
 /// # Safety
 /// `ptr` must be valid for reads and writes of `byte_size` bytes for the buffer's lifetime
@@ -818,7 +833,7 @@ pub unsafe extern "C" fn temcNewSharedBuffer(
     byte_size: usize,
 ) -> TEMCBuffer {
     guarded(std::ptr::null_mut(), |c| {
-        let d = c.device(device)?;
+        let d = committed_device(c, device)?;
         if ptr.is_null() && byte_size > 0 {
             return Err(Failure::invalid("shared buffer: NULL pointer"));
         }
@@ -828,7 +843,7 @@ pub unsafe extern "C" fn temcNewSharedBuffer(
 
 fn no_external_memory(device: TEMCDevice) -> TEMCBuffer {
     guarded(std::ptr::null_mut(), |c| {
-        c.device(device)?;
+        committed_device(c, device)?;
         Err(Failure::operation(
             "the CPU device imports no external memory (\"externalMemoryTypes\" is 0)",
         ))
@@ -990,13 +1005,7 @@ pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
 
 /// The device of a semaphore call, which must be committed (OIDN checks this first).
 fn semaphore_device(c: &mut objects::Call, device: TEMCDevice) -> Outcome<()> {
-    if c.device(device)?.device.is_committed() {
-        Ok(())
-    } else {
-        Err(Failure::operation(
-            "changes to the device are not committed",
-        ))
-    }
+    committed_device(c, device).map(|_| ())
 }
 
 /// OIDN's type check: the types must be among the device's "externalSemaphoreTypes" (none).
@@ -1115,7 +1124,8 @@ pub extern "C" fn temcReleaseSemaphore(semaphore: TEMCSemaphore) {
 /// Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
 /// given only "albedo" or only "normal" and an "output", it denoises that aux image),
 /// "RTLightmap" (TEMC-2 on HDR colour; "directional" must stay false), or temc's
-/// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced).
+/// "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced). The device must be committed
+/// (TEMC_ERROR_INVALID_OPERATION otherwise, as in OIDN).
 ///
 /// # Safety
 /// `filter_type` must be NULL or a NUL-terminated string.
@@ -1125,7 +1135,7 @@ pub unsafe extern "C" fn temcNewFilter(
     filter_type: *const c_char,
 ) -> TEMCFilter {
     guarded(std::ptr::null_mut(), |c| {
-        let d = c.device(device)?;
+        let d = committed_device(c, device)?;
         // SAFETY: the caller's contract.
         let state = FilterState::new(&d, unsafe { name_arg(filter_type) }?)?;
         FILTERS
@@ -1171,7 +1181,9 @@ fn layout(
     })
 }
 
-/// Sets an image stored in a buffer (which the filter holds while the image is set).
+/// Sets an image stored in a buffer (which the filter holds while the image is set). A
+/// NULL or released buffer is TEMC_ERROR_INVALID_ARGUMENT on the filter's device, as in
+/// OIDN (temcSetSharedFilterImage with NULL memory unsets the image instead).
 /// Names: "color", "albedo", "normal", "depth", "output", "spectral" (see
 /// temcSetSharedFilterImage). Strides of 0 mean tightly packed.
 ///
@@ -1191,8 +1203,9 @@ pub unsafe extern "C" fn temcSetFilterImage(
     row_byte_stride: usize,
 ) {
     guarded((), |c| {
-        let b = c.buffer(buffer)?;
+        // OIDN's order: the filter, then the buffer, whose errors go to the filter's device.
         let f = c.filter(filter)?;
+        let b = c.buffer_arg(buffer)?;
         if !Arc::ptr_eq(&b.device, &f.device) {
             return Err(Failure::invalid("the buffer belongs to another device"));
         }
@@ -1287,7 +1300,8 @@ pub unsafe extern "C" fn temcRemoveFilterImage(filter: TEMCFilter, name: *const 
 }
 
 /// Sets opaque data: "weights" = a temc ONNX model (copied now and at each
-/// temcUpdateFilterData).
+/// temcUpdateFilterData; NULL with 0 bytes unsets it, as in OIDN). Weights that do not
+/// load fail the next temcCommitFilter with TEMC_ERROR_INVALID_OPERATION, as in OIDN.
 ///
 /// # Safety
 /// `name` must be NULL or a NUL-terminated string; `host_ptr` readable for `byte_size`

@@ -757,3 +757,187 @@ fn semaphores_fail_as_on_oidns_cpu_device() {
     assert_eq!(error(d).0, TEMC_ERROR_NONE);
     temcReleaseDevice(d);
 }
+
+/// OIDN wants a committed device for sync, new buffers and new filters (api.cpp's
+/// checkCommitted; oidnTest's "single filter" relies on it): TEMC_ERROR_INVALID_OPERATION
+/// before the commit and after a change that needs another, nothing made.
+#[test]
+fn buffers_and_filters_need_a_committed_device() {
+    let not_committed = || {
+        (
+            TEMC_ERROR_INVALID_OPERATION,
+            "changes to the device are not committed".to_string(),
+        )
+    };
+    let d = temcNewDevice(TEMC_DEVICE_TYPE_CPU);
+    assert!(unsafe { temcNewFilter(d, c("RT").as_ptr()) }.is_null());
+    assert_eq!(error(d), not_committed());
+    assert!(temcNewBuffer(d, 64).is_null());
+    assert_eq!(error(d), not_committed());
+    assert!(temcNewBufferWithStorage(d, 64, TEMC_STORAGE_DEVICE).is_null());
+    assert_eq!(error(d), not_committed());
+    let mut host = [0f32; 16];
+    assert!(unsafe { temcNewSharedBuffer(d, host.as_mut_ptr().cast(), 64) }.is_null());
+    assert_eq!(error(d), not_committed());
+    temcSyncDevice(d);
+    assert_eq!(error(d), not_committed());
+
+    temcCommitDevice(d);
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    let b = temcNewBuffer(d, 64);
+    temcSyncDevice(d);
+    assert!(!f.is_null() && !b.is_null());
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    // A NULL buffer is an error of the filter's device, as OIDN reports it (oidnTest's
+    // "single filter" reads it there).
+    unsafe {
+        temcSetFilterImage(
+            f,
+            c("color").as_ptr(),
+            std::ptr::null_mut(),
+            TEMC_FORMAT_FLOAT3,
+            4,
+            4,
+            0,
+            0,
+            0,
+        )
+    };
+    assert_eq!(
+        error(d),
+        (TEMC_ERROR_INVALID_ARGUMENT, "NULL buffer".to_string())
+    );
+
+    // A new thread count needs another commit, as any device change does in OIDN.
+    unsafe { temcSetDeviceInt(d, c("numThreads").as_ptr(), 1) };
+    assert!(unsafe { temcNewFilter(d, c("RT").as_ptr()) }.is_null());
+    assert_eq!(error(d), not_committed());
+    temcCommitDevice(d);
+    let g = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    assert!(!g.is_null());
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    temcReleaseFilter(g);
+    temcReleaseFilter(f);
+    temcReleaseBuffer(b);
+    temcReleaseDevice(d);
+}
+
+/// OIDN's "weights" rules (oidnTest's "user weights"): NULL with 0 bytes is empty data
+/// (no user weights, no error), NULL with a size is INVALID_ARGUMENT, and bytes that are
+/// not usable weights are accepted when set and refused by commit with
+/// INVALID_OPERATION.
+#[test]
+fn weights_follow_oidns_data_rules() {
+    let d = device();
+    let (w, h) = (23, 19);
+    let color = image(w, h);
+    let mut out = vec![-7f32; w * h * 3];
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    let weights = c("weights");
+    let set =
+        |p: *mut c_void, n: usize| unsafe { temcSetSharedFilterData(f, weights.as_ptr(), p, n) };
+
+    set(std::ptr::null_mut(), 0);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "empty data");
+    set(std::ptr::null_mut(), 900);
+    assert_eq!(
+        error(d).0,
+        TEMC_ERROR_INVALID_ARGUMENT,
+        "NULL data of 900 bytes"
+    );
+    temcCommitFilter(f);
+    assert_eq!(
+        error(d).0,
+        TEMC_ERROR_NONE,
+        "no user weights: the built-in model"
+    );
+
+    let mut garbage: Vec<u8> = (0..900u32).map(|i| (i * 7919 % 251) as u8).collect();
+    set(garbage.as_mut_ptr().cast(), garbage.len());
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "set: not parsed yet");
+    temcCommitFilter(f);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_INVALID_OPERATION, "{msg}");
+    assert!(
+        msg.starts_with("invalid or corrupted weights blob"),
+        "{msg}"
+    );
+    temcExecuteFilter(f);
+    assert_eq!(
+        error(d).0,
+        TEMC_ERROR_INVALID_OPERATION,
+        "execute after a failed commit"
+    );
+    assert!(
+        out.iter().all(|v| *v == -7.0),
+        "output written after a failed commit"
+    );
+
+    // Unset by empty data, the filter commits with its built-in model again.
+    set(std::ptr::null_mut(), 0);
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_NONE, "{msg}");
+    assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+/// OIDN's empty images and zero memory budget (oidnTest's "image size", "filter update"
+/// and "inplace filter"): NULL shared memory of no pixels unsets an image, a filter of
+/// 0xN or Nx0 images commits and executes as a no-op, and "maxMemoryMB" 0 is accepted
+/// (read back as 0) and still denoises.
+#[test]
+fn empty_images_and_a_zero_memory_budget_follow_oidn() {
+    let d = device();
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    for (w, h) in [(0, 0), (0, 1), (1, 0)] {
+        let color = temcNewBuffer(d, 0);
+        let out = temcNewBuffer(d, 0);
+        for (name, b) in [("color", color), ("output", out)] {
+            unsafe {
+                temcSetFilterImage(f, c(name).as_ptr(), b, TEMC_FORMAT_FLOAT3, w, h, 0, 0, 0)
+            };
+        }
+        temcCommitFilter(f);
+        temcExecuteFilter(f);
+        let (code, msg) = error(d);
+        assert_eq!(code, TEMC_ERROR_NONE, "{w}x{h}: {msg}");
+        temcReleaseBuffer(color);
+        temcReleaseBuffer(out);
+    }
+
+    let (w, h) = (40, 24);
+    let color = image(w, h);
+    let albedo = vec![0.5f32; w * h * 3];
+    let mut out = vec![0f32; w * h * 3];
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "albedo", albedo.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    seti(f, "maxMemoryMB", 0);
+    assert_eq!(geti(f, "maxMemoryMB"), 0);
+    // Unset by NULL memory of no pixels: the filter no longer needs an albedo-sized image.
+    set_image(f, "albedo", std::ptr::null(), TEMC_FORMAT_FLOAT3, 0, 0);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    set_image(f, "albedo", std::ptr::null(), TEMC_FORMAT_FLOAT3, w, h);
+    assert_eq!(
+        error(d).0,
+        TEMC_ERROR_INVALID_ARGUMENT,
+        "NULL memory of w x h pixels"
+    );
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    let (code, msg) = error(d);
+    assert_eq!(code, TEMC_ERROR_NONE, "{msg}");
+    assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
+    seti(f, "maxMemoryMB", 512);
+    assert_eq!(geti(f, "maxMemoryMB"), 512);
+    assert_eq!(geti(f, "tileSize"), 0, "the budget picks the tiles again");
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}

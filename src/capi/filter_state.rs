@@ -14,6 +14,7 @@ use crate::color::SpectralBands;
 use crate::filter::{Filter, Quality, DEFAULT_MAX_MEMORY_MB};
 use crate::image::{read3, write3, Format, Layout};
 use crate::prefilter::{filter_aux, AuxKind};
+use crate::Error;
 
 /// The filter types the C ABI knows: OIDN's two and temc's own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,6 +43,13 @@ enum Mode {
     Denoise { spectral: bool, srgb: bool },
     /// "RT" with only one aux image and an output: denoise that image.
     Prefilter(AuxKind),
+    /// Every image is empty (0 pixels): OIDN commits and executes it, doing nothing.
+    Empty,
+}
+
+/// An image of no pixels (OIDN's 0xN and Nx0 images).
+fn is_empty(layout: &Layout) -> bool {
+    layout.width == 0 || layout.height == 0
 }
 
 // Default band range for "spectral": temc-render's spectral layer.
@@ -66,6 +74,8 @@ pub(crate) struct FilterState {
     /// The caller's "weights" buffer, re-read by temcUpdateFilterData.
     weights: Option<(usize, usize)>,
     max_memory_auto: bool,
+    /// "maxMemoryMB" 0: commit sets the core filter's tile size from the model's overlap.
+    small_tiles: bool,
     mode: Option<Mode>,
 }
 
@@ -116,6 +126,7 @@ impl FilterState {
             spectral_max: SPECTRAL_MAX_NM,
             weights: None,
             max_memory_auto: api != Api::Native,
+            small_tiles: false,
             mode: None,
         })
     }
@@ -143,6 +154,25 @@ impl FilterState {
         };
         if self.api == Api::RtLightmap && !matches!(name, "color" | "output" | "spectral") {
             dev.warn(&format!("RTLightmap ignores image {name:?}"));
+            return Ok(());
+        }
+        if is_empty(&layout) {
+            // OIDN's empty images: shared memory that is NULL unsets the image; one of a
+            // buffer (or non-NULL memory) stays set, with nothing to read, and a filter
+            // whose images are all empty commits and executes as a no-op. The core
+            // filter, which needs pixels, never sees it.
+            if ptr.is_null() && buffer.is_none() {
+                return self.unset_image(dev, name);
+            }
+            self.images.insert(
+                name,
+                SetImage {
+                    ptr,
+                    layout,
+                    buffer,
+                },
+            );
+            self.changed();
             return Ok(());
         }
         if ptr.is_null() {
@@ -188,7 +218,9 @@ impl FilterState {
         layout: &Layout,
         buffer: &BufferObj,
     ) -> Outcome<()> {
-        let span = if name == "spectral" {
+        let span = if is_empty(layout) {
+            0 // OIDN's empty image (0 pixels), in a buffer of any size
+        } else if name == "spectral" {
             spectral_span(layout, self.spectral_bands.max(1) as usize)?
         } else {
             layout.validate(name)?
@@ -200,6 +232,13 @@ impl FilterState {
             )));
         }
         Ok(())
+    }
+
+    /// Leaves "maxMemoryMB" 0's tiles: the budget picks them again.
+    fn end_small_tiles(&mut self) {
+        if std::mem::take(&mut self.small_tiles) {
+            self.filter.set_tile_size(0);
+        }
     }
 
     /// Removes an image.
@@ -224,7 +263,9 @@ impl FilterState {
         Ok(())
     }
 
-    /// Sets opaque data: "weights" (a temc ONNX model; re-read by [`Self::update_data`]).
+    /// Sets opaque data: "weights" (a temc ONNX model; re-read by [`Self::update_data`];
+    /// a NULL pointer of 0 bytes unsets it, as OIDN's empty data). A model that does not
+    /// load fails the next commit, as in OIDN.
     ///
     /// # Safety
     /// `ptr` must be readable for `size` bytes now and at every temcUpdateFilterData.
@@ -238,6 +279,10 @@ impl FilterState {
         if name != "weights" {
             dev.warn(&format!("unknown filter data {name:?} ignored"));
             return Ok(());
+        }
+        if ptr.is_null() && size == 0 {
+            // OIDN's empty data (a NULL pointer of 0 bytes): no user weights.
+            return self.unset_data(dev, name);
         }
         if ptr.is_null() || size == 0 {
             return Err(Failure::invalid("weights: NULL or empty buffer"));
@@ -311,12 +356,26 @@ impl FilterState {
                 // OIDN's -1: no explicit limit; temc then uses its default budget.
                 self.filter.set_max_memory_mb(DEFAULT_MAX_MEMORY_MB);
                 self.max_memory_auto = true;
+                self.end_small_tiles();
+            }
+            "maxMemoryMB" if v == 0 => {
+                // OIDN's 0: as little memory as possible, so small tiles (oidnTest sets it
+                // to force many). temc's smallest tile, one alignment step inside the
+                // overlap, would repeat its ~100-pixel overlap some 100-fold: commit picks
+                // tiles of 4 overlaps instead (see `small_tiles`).
+                self.filter.set_max_memory_mb(0);
+                self.max_memory_auto = false;
+                self.small_tiles = true;
             }
             "maxMemoryMB" => {
                 self.filter.set_int(name, v)?;
                 self.max_memory_auto = false;
+                self.end_small_tiles();
             }
-            "tileSize" => self.filter.set_int(name, v)?,
+            "tileSize" => {
+                self.filter.set_int(name, v)?;
+                self.small_tiles = false;
+            }
             "spectralBands" => {
                 if v < 1 {
                     return Err(Failure::invalid(format!(
@@ -478,6 +537,15 @@ impl FilterState {
         self.mode = None;
         let hdr = self.filter.get_int("hdr")? != 0;
         self.check_params(hdr)?;
+        if self
+            .images
+            .get("output")
+            .is_some_and(|o| is_empty(&o.layout))
+        {
+            // check_params held the inputs to the output's size: all are empty.
+            self.mode = Some(Mode::Empty);
+            return Ok(());
+        }
         let has = |n: &str| self.images.contains_key(n);
         let mode = if !has("color") && !has("spectral") {
             // Aux images alone: OIDN's "RT" denoises one of them; nothing else does.
@@ -538,7 +606,23 @@ impl FilterState {
                 self.filter.unset_image("color")?;
                 self.staged = None;
             }
-            self.filter.commit()?;
+            let user_weights = self.weights.is_some();
+            self.filter.commit().map_err(|e| match e {
+                // As OIDN refuses a weights blob it cannot use: at commit, with
+                // INVALID_OPERATION (core/tza.cpp), whatever the parser's reason.
+                Error::Model(_) | Error::InvalidArgument(_) if user_weights => {
+                    Failure::operation(format!("invalid or corrupted weights blob: {e}"))
+                }
+                e => e.into(),
+            })?;
+            if self.small_tiles {
+                // Cores of 4 overlaps: several tiles on any image OIDN would tile, each
+                // repeating little of its neighbours' work. Committing again reuses the
+                // loaded model.
+                let overlap = self.filter.model().map_or(0, |m| m.info().tile_overlap);
+                self.filter.set_tile_size((4 * overlap).max(64));
+                self.filter.commit()?;
+            }
         }
         self.mode = Some(mode);
         Ok(())
@@ -578,6 +662,7 @@ impl FilterState {
             Failure::operation("the filter is not committed (call commit after changes)")
         })?;
         match mode {
+            Mode::Empty => Ok(()),
             Mode::Prefilter(kind) => self.prefilter(kind),
             Mode::Denoise { spectral, srgb } => {
                 if spectral {

@@ -313,14 +313,24 @@ impl Call {
 
     /// The live buffer behind `h`; errors go to its device.
     pub fn buffer(&mut self, h: TEMCBuffer) -> Outcome<Arc<BufferObj>> {
+        let b = Self::live_buffer(h)?;
+        self.device = Some(b.device.clone());
+        Ok(b)
+    }
+
+    /// The live buffer behind `h` as an argument of a call on another object (a filter's
+    /// image): errors stay with the device already resolved, as OIDN reports them.
+    pub fn buffer_arg(&mut self, h: TEMCBuffer) -> Outcome<Arc<BufferObj>> {
+        Self::live_buffer(h)
+    }
+
+    fn live_buffer(h: TEMCBuffer) -> Outcome<Arc<BufferObj>> {
         if h.is_null() {
             return Err(Failure::invalid("NULL buffer"));
         }
-        let b = BUFFERS
+        BUFFERS
             .get(h.addr())
-            .ok_or_else(|| Failure::invalid("invalid or released buffer handle"))?;
-        self.device = Some(b.device.clone());
-        Ok(b)
+            .ok_or_else(|| Failure::invalid("invalid or released buffer handle"))
     }
 }
 
