@@ -9,6 +9,8 @@ use std::process::Command;
 
 use temc::filter::{Device, Filter};
 
+mod common;
+
 const MODEL: &str = "tests/data/models/temc2_w0.0625.onnx";
 
 fn root() -> &'static Path {
@@ -23,26 +25,8 @@ fn build_examples() -> PathBuf {
 }
 
 fn build_examples_once() -> PathBuf {
-    let release = !cfg!(debug_assertions);
-    let mut cargo = Command::new(env!("CARGO"));
-    cargo
-        .current_dir(root())
-        // The same package selection and dev-dependency feature unification as
-        // `cargo test --workspace`, so this build reuses that build's libtemc instead of
-        // overwriting it with a differently-featured one (which breaks later doctests of
-        // crates that link it).
-        .args(["build", "--workspace", "--lib", "--tests", "--quiet"]);
-    if release {
-        cargo.arg("--release");
-    }
-    assert!(
-        cargo.status().unwrap().success(),
-        "cargo build --lib failed"
-    );
-    let target =
-        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
-    let lib = target.join(if release { "release" } else { "debug" });
-    let out = target.join("c-examples");
+    let lib = common::built_library();
+    let out = lib.parent().expect("target folder").join("c-examples");
     let status = Command::new("make")
         .current_dir(root().join("c-examples"))
         .arg(format!("TEMC_LIB={}", lib.display()))

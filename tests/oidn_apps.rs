@@ -11,6 +11,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
@@ -29,23 +31,7 @@ fn oidn_test_suite_passes_on_temc() {
         "TEMC_OIDN_SRC={} has no apps/oidnTest.cpp: not OIDN's sources",
         src.display()
     );
-    // libtemc.so as c_examples.rs builds it (the same features as `cargo test
-    // --workspace`, so it is not rebuilt differently-featured under other tests).
-    let release = !cfg!(debug_assertions);
-    let mut cargo = Command::new(env!("CARGO"));
-    cargo
-        .current_dir(root())
-        .args(["build", "--workspace", "--lib", "--tests", "--quiet"]);
-    if release {
-        cargo.arg("--release");
-    }
-    assert!(
-        cargo.status().unwrap().success(),
-        "cargo build --lib failed"
-    );
-    let target =
-        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
-    let lib = target.join(if release { "release" } else { "debug" });
+    let lib = common::built_library();
     let build = std::env::temp_dir().join(format!("temc-oidn-apps-{}", std::process::id()));
     let out = Command::new(root().join("scripts/oidn-apps"))
         .arg(&src)

@@ -135,6 +135,12 @@ impl FilterState {
         self.mode = None;
     }
 
+    /// Keeps a set image; the filter needs another commit.
+    fn store_image(&mut self, name: &'static str, image: SetImage) {
+        self.images.insert(name, image);
+        self.changed();
+    }
+
     /// Sets an image; `buffer` is the buffer it lives in, if any (already range-checked).
     ///
     /// # Safety
@@ -164,7 +170,7 @@ impl FilterState {
             if ptr.is_null() && buffer.is_none() {
                 return self.unset_image(dev, name);
             }
-            self.images.insert(
+            self.store_image(
                 name,
                 SetImage {
                     ptr,
@@ -172,7 +178,6 @@ impl FilterState {
                     buffer,
                 },
             );
-            self.changed();
             return Ok(());
         }
         if ptr.is_null() {
@@ -199,7 +204,7 @@ impl FilterState {
                 self.pushed_color = Some((ptr as usize, layout));
             }
         }
-        self.images.insert(
+        self.store_image(
             name,
             SetImage {
                 ptr,
@@ -207,7 +212,6 @@ impl FilterState {
                 buffer,
             },
         );
-        self.changed();
         Ok(())
     }
 

@@ -4,9 +4,33 @@
 #![allow(dead_code)]
 
 use std::ffi::CString;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use temc::filter::Device;
+
+/// Builds libtemc for this test profile, with the same package selection and dev-dependency
+/// feature unification as `cargo test --workspace`, so the build reuses that build's
+/// libtemc instead of overwriting it with a differently-featured one (which breaks later
+/// doctests of crates that link it). Returns the folder holding libtemc.so.
+pub fn built_library() -> PathBuf {
+    let release = !cfg!(debug_assertions);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut cargo = Command::new(env!("CARGO"));
+    cargo
+        .current_dir(root)
+        .args(["build", "--workspace", "--lib", "--tests", "--quiet"]);
+    if release {
+        cargo.arg("--release");
+    }
+    assert!(
+        cargo.status().unwrap().success(),
+        "cargo build --lib failed"
+    );
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
+    target.join(if release { "release" } else { "debug" })
+}
 
 /// The untrained test model of `arch` ("temc2", "temc1", "demc", "ae") as ONNX bytes:
 /// for tests of the machinery, not of denoising quality.
