@@ -231,23 +231,24 @@ fn range_guide(luma: &[f32], h: usize, w: usize, exposure: f32) -> Vec<f32> {
         .collect()
 }
 
-/// `op` folded over each pixel's 3x3 window, clipped to the image: rows, then columns.
-fn window3(x: &[f32], h: usize, w: usize, op: fn(f32, f32) -> f32) -> Vec<f32> {
+/// `op` (min or max: exact, so the order does not matter) over each pixel's 3x3 window,
+/// clipped to the image: along rows, then along columns, three reads a pixel each way.
+fn window3(x: &[f32], h: usize, w: usize, op: impl Fn(f32, f32) -> f32 + Copy) -> Vec<f32> {
     let mut rows = vec![0.0; h * w];
     for (src, dst) in x.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
         for (i, o) in dst.iter_mut().enumerate() {
-            let (a, b) = (i.saturating_sub(1), (i + 1).min(w - 1));
-            *o = src[a..=b].iter().copied().reduce(op).expect("non-empty");
+            *o = op(
+                op(src[i.saturating_sub(1)], src[i]),
+                src[(i + 1).min(w - 1)],
+            );
         }
     }
     let mut out = vec![0.0; h * w];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(1), (y + 1).min(h - 1));
-        for (i, o) in out[y * w..][..w].iter_mut().enumerate() {
-            *o = (a..=b)
-                .map(|r| rows[r * w + i])
-                .reduce(op)
-                .expect("non-empty");
+    for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+        let row = |r: usize| &rows[r * w..][..w];
+        let (up, mid, down) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+        for (((o, &a), &b), &c) in dst.iter_mut().zip(up).zip(mid).zip(down) {
+            *o = op(op(a, b), c);
         }
     }
     out
@@ -264,6 +265,9 @@ struct Scratch {
     norm: Vec<f32>,
     /// Per pixel of the block: the weighted sum being accumulated.
     acc: Vec<f32>,
+    /// Tap-major like `weights`: the fixed range term's penalty of each tap for the
+    /// block, computed once and subtracted from the luma and the chroma logits alike.
+    fixed: Vec<f32>,
 }
 
 impl Scratch {
@@ -275,6 +279,7 @@ impl Scratch {
             max: vec![0.0; b],
             norm: vec![0.0; b],
             acc: vec![0.0; b],
+            fixed: vec![0.0; k * k * BLOCK],
         }
     }
 }
@@ -367,16 +372,14 @@ fn filter_level_any(
         for bx0 in (0..w).step_by(BLOCK) {
             let bx = (bx0, (bx0 + BLOCK).min(w));
             let at = y * w + bx0..y * w + bx.1;
-            s.weights_for(&f[..k2 * n], [guide(0), fixed.as_deref()], y, h, w, bx);
+            if let Some(g) = &fixed {
+                s.fixed_terms(g, y, h, w, bx);
+            }
+            let with_fixed = fixed.is_some();
+            s.weights_for(&f[..k2 * n], guide(0), with_fixed, y, h, w, bx);
             s.apply(&luma, y, h, w, bx, &mut fy[at.clone()]);
-            s.weights_for(
-                &f[k2 * n..2 * k2 * n],
-                [guide(1), fixed.as_deref()],
-                y,
-                h,
-                w,
-                bx,
-            );
+            let chroma = &f[k2 * n..2 * k2 * n];
+            s.weights_for(chroma, guide(1), with_fixed, y, h, w, bx);
             for c in 0..3 {
                 let plane = &x[c * n..][..n];
                 s.apply(plane, y, h, w, bx, &mut fc[c * n..][at.clone()]);
@@ -387,16 +390,38 @@ fn filter_level_any(
 }
 
 impl Scratch {
-    /// The softmax weights (unnormalised, with 1 / sum in `norm`) of row `y`, block `bx`,
-    /// over the taps inside the image; `apply` reads only those. `guides`: with a learned
-    /// guide plane each logit gains the range term -(g(tap) - g(centre))^2 / 2 (guides
-    /// cleaned like logits); with the fixed range term's plane ([`range_guide`]) it gains
-    /// -max(0, |g(tap) - g(centre)| - RANGE_TAU)^2 / 2.
+    /// The fixed range term's penalty max(0, |g(tap) - g(centre)| - RANGE_TAU)^2 / 2 of
+    /// every tap inside the image for row `y`, block `bx`, from its guide plane
+    /// ([`range_guide`]), into `fixed`.
     #[inline(always)]
+    fn fixed_terms(&mut self, g: &[f32], y: usize, h: usize, w: usize, bx: (usize, usize)) {
+        for t in 0..self.k * self.k {
+            let (dy, dx) = tap(self.k, t);
+            let Some((x0, x1)) = span(y, dy, dx, h, w, bx) else {
+                continue;
+            };
+            let row = (y as isize + dy) as usize * w;
+            let gt = &g[row + (x0 as isize + dx) as usize..][..x1 - x0];
+            let gc = &g[y * w + x0..][..x1 - x0];
+            let pen = &mut self.fixed[t * BLOCK..][x0 - bx.0..x1 - bx.0];
+            for ((p, &a), &c) in pen.iter_mut().zip(gt).zip(gc) {
+                let e = ((a - c).abs() - RANGE_TAU).max(0.0);
+                *p = 0.5 * e * e;
+            }
+        }
+    }
+
+    /// The softmax weights (unnormalised, with 1 / sum in `norm`) of row `y`, block `bx`,
+    /// over the taps inside the image; `apply` reads only those. With a learned `guide`
+    /// plane each logit gains the range term -(g(tap) - g(centre))^2 / 2 (guides cleaned
+    /// like logits); `with_fixed` then subtracts the penalties [`Scratch::fixed_terms`] left.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)] // the block's coordinates, as `apply` takes them
     fn weights_for(
         &mut self,
         logits: &[f32],
-        [guide, fixed]: [Option<&[f32]>; 2],
+        guide: Option<&[f32]>,
+        with_fixed: bool,
         y: usize,
         h: usize,
         w: usize,
@@ -425,14 +450,9 @@ impl Scratch {
                     *o -= 0.5 * d * d;
                 }
             }
-            if let Some(g) = fixed {
-                let row = (y as isize + dy) as usize * w;
-                let gt = &g[row + (x0 as isize + dx) as usize..][..x1 - x0];
-                let gc = &g[y * w + x0..][..x1 - x0];
-                for ((o, &a), &c) in wt.iter_mut().zip(gt).zip(gc) {
-                    let e = ((a - c).abs() - RANGE_TAU).max(0.0);
-                    *o -= 0.5 * e * e;
-                }
+            if with_fixed {
+                let pen = &self.fixed[t * BLOCK..][x0 - bx.0..x1 - bx.0];
+                wt.iter_mut().zip(pen).for_each(|(o, p)| *o -= p);
             }
             for (&v, m) in wt.iter().zip(&mut max[x0 - bx.0..x1 - bx.0]) {
                 *m = if v > *m { v } else { *m };

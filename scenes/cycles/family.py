@@ -36,31 +36,27 @@ def material(name, rgb, rough=0.5, metal=0.0, transmission=0.0, ior=1.45):
     return m
 
 
-def emissive(name, rgb, strength):
+def shader(name, node, output, **inputs):
+    """A material of one shader node (`node`, e.g. "ShaderNodeEmission") whose `output`
+    socket is the surface; `inputs` maps socket names to values."""
     m = bpy.data.materials.new(name)
     m.use_nodes = True
     nt = m.node_tree
     nt.nodes.clear()
-    e = nt.nodes.new("ShaderNodeEmission")
-    e.inputs["Color"].default_value = (*rgb, 1.0)
-    e.inputs["Strength"].default_value = strength
+    n = nt.nodes.new(node)
+    for socket, value in inputs.items():
+        n.inputs[socket].default_value = value
     out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(e.outputs["Emission"], out.inputs["Surface"])
+    nt.links.new(n.outputs[output], out.inputs["Surface"])
     return m
+
+
+def emissive(name, rgb, strength):
+    return shader(name, "ShaderNodeEmission", "Emission", Color=(*rgb, 1.0), Strength=strength)
 
 
 def glass(name, rgb=(1, 1, 1), rough=0.0, ior=1.5):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    nt = m.node_tree
-    nt.nodes.clear()
-    g = nt.nodes.new("ShaderNodeBsdfGlass")
-    g.inputs["Color"].default_value = (*rgb, 1.0)
-    g.inputs["Roughness"].default_value = rough
-    g.inputs["IOR"].default_value = ior
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(g.outputs["BSDF"], out.inputs["Surface"])
-    return m
+    return shader(name, "ShaderNodeBsdfGlass", "BSDF", Color=(*rgb, 1.0), Roughness=rough, IOR=ior)
 
 
 def give(mat):

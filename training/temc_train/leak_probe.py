@@ -24,14 +24,15 @@ import torch.nn.functional as F
 
 from . import data, evaluate
 from .export import load_checkpoint, recon_of
-from .probe import denoise
+from .probe import denoise, evaluate_oidn
+from .reconstruct import LUMA
 
 BRIGHT = 8.0
 NEAR = 8
 
 
 def _lum(x):
-    return x[..., 0] * 0.2126 + x[..., 1] * 0.7152 + x[..., 2] * 0.0722
+    return x @ np.asarray(LUMA, x.dtype)
 
 
 def near_mask(ref: np.ndarray) -> np.ndarray:
@@ -78,16 +79,6 @@ def evaluate_variants(run: str, scenes: list) -> dict:
     return res
 
 
-def evaluate_oidn(scenes: list) -> dict:
-    res = {}
-    for sc in scenes:
-        for s, spp in enumerate(sc.spp):
-            layers = {k: sc.a[k][s] for k in ("color", "albedo", "normal")}
-            out, _ = evaluate.oidn_denoise(layers, "high", "full")
-            res.setdefault(spp, []).append(leak_scores(out, sc.a["reference"]))
-    return res
-
-
 def table(rows: dict, spps: list) -> list:
     lines = ["| denoiser | spp | RelMSE (geomean) | dE ITP | worst mean | near share | near x (p99) |",
              "|---|---:|---:|---:|---:|---:|---:|"]
@@ -111,7 +102,10 @@ def main(argv=None):
     scenes = data.load_split(a.data, "test")
     rows = {f"temc, fixed range term {v}": r for v, r in evaluate_variants(a.run, scenes).items()}
     if a.oidn:
-        rows["OIDN 2.5 high"] = evaluate_oidn(scenes)
+        oidn = evaluate_oidn(scenes, leak_scores)
+        if oidn is None:
+            raise SystemExit("--oidn needs pyoidn: pip install pyoidn==2.5.1.0")
+        rows["OIDN 2.5 high"] = oidn
     spps = sorted({spp for r in rows.values() for spp in r})
     lines = [
         "# The fixed range term against lamp leaks (issue 36, item 1)", "",
