@@ -1099,7 +1099,7 @@ mod tests {
             .collect()
     }
 
-    /// The PyTorch reference (float64) of training/temc_train/recon_vectors.py.
+    /// The PyTorch reference (float64) of training/temc_train/vectors/recon_vectors.py.
     #[test]
     fn matches_the_pytorch_vectors() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/recon_vectors.json");

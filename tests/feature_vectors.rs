@@ -1,8 +1,8 @@
 //! The shared feature vectors: tests/data/feature_vectors.json is written by
-//! training/temc_train/feature_vectors.py (what training feeds the network) and checked
+//! training/temc_train/vectors/feature_vectors.py (what training feeds the network) and checked
 //! here against the core's automatic exposure and aux features (docs/contracts.md §1,
 //! steps 3 and 7), so inference sees the numbers training saw. After a deliberate change
-//! on either side, regenerate the file (`python -m temc_train.feature_vectors` in
+//! on either side, regenerate the file (`python -m temc_train.vectors.feature_vectors` in
 //! training/) and run this test and training/tests/test_feature_vectors.py.
 
 mod common;

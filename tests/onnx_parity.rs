@@ -1,7 +1,7 @@
 //! tract against onnxruntime: every architecture's test model, run by the engine on the
 //! golden inputs, must match the golden filter logits (every pyramid level) that
 //! onnxruntime computed (max abs 1e-4).
-//! Models and goldens are made by `python -m temc_train.export --golden tests/data`.
+//! Models and goldens are made by `python -m temc_train.drivers.export --golden tests/data`.
 //! The shipped, trained models in onnx/ are checked the same way against the goldens
 //! `scripts/ship-models` wrote for them in tests/data/golden/shipped/. (The baselines
 //! return as shipped files with issue 15's equal-budget runs.)

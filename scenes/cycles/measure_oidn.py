@@ -1,6 +1,6 @@
 """RelMSE of the noisy input and of OIDN high (pyoidn, HDR, albedo + normal) against the
 reference on a rendered Cycles family, per spp: geometric mean over the scenes, and each
-scene's numbers. The same metric and OIDN call as temc_train.report (evaluate.py).
+scene's numbers. The same metric and OIDN call as temc_train.probes.report (evaluate.py).
 
     PYTHONPATH=training ~/.cache/temc-venv/bin/python scenes/cycles/measure_oidn.py data/cycles-family
 

@@ -297,17 +297,3 @@ def ready(root: str, n_train: int, n_val: int) -> bool:
         return len(_records(root, "train")) >= n_train and len(_records(root, "val")) >= n_val
     except (OSError, ValueError, KeyError):
         return False  # no manifest yet, or one being replaced
-
-
-def main(argv=None):
-    import argparse
-
-    ap = argparse.ArgumentParser(description="python -m temc_train.data --ready DIR N_TRAIN N_VAL: "
-                                             "exit 0 once DIR has that many finished scenes")
-    ap.add_argument("--ready", nargs=3, metavar=("DIR", "N_TRAIN", "N_VAL"), required=True)
-    a = ap.parse_args(argv)
-    raise SystemExit(0 if ready(a.ready[0], int(a.ready[1]), int(a.ready[2])) else 1)
-
-
-if __name__ == "__main__":
-    main()

@@ -1,7 +1,7 @@
 """The keep-mean stage: after the reconstruction, each block of the output is scaled back to
 the noisy input's mean (docs/keep-mean.md). src/keep_mean.rs is the same function in Rust;
-tests/data/keep_mean_vectors.json (written by `python -m temc_train.keep_mean` from training/)
-pins the two.
+tests/data/keep_mean_vectors.json (`vector_cases`, written by
+`python -m temc_train.vectors.keep_mean` from training/) pins the two.
 
 The reconstruction's weights sum to one per *output* pixel, so nothing bounds how much a
 bright pixel gives away (a thin bright line spread into its neighbours) or keeps (a firefly the
@@ -10,7 +10,6 @@ the ratio of the input's and the output's block sums, interpolated smoothly betw
 centres and clamped, restores it without moving detail.
 """
 
-import json
 import pathlib
 
 import numpy as np
@@ -152,8 +151,3 @@ def vector_cases():
                         input=noisy.ravel().tolist(), output=den.ravel().tolist(),
                         want=[float(f"{v:.9g}") for v in want.ravel()]))
     return out
-
-
-if __name__ == "__main__":
-    VECTORS.write_text(json.dumps(vector_cases()) + "\n")
-    print(f"wrote {VECTORS}")

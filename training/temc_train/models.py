@@ -1,5 +1,5 @@
 """TEMC-2, TEMC-1, DEMC and the TEMC autoencoder, following
-../shared/reference/temc-architecture.md layer by layer.
+docs/reference/temc-architecture.md layer by layer.
 
 Every model takes the same three inputs (docs/contracts.md §2): chroma (H, S) [N,2,H,W],
 luma V [N,1,H,W] and aux (albedo 3, normal 3, depth 1) [N,7,H,W]. `width` scales every

@@ -2,7 +2,7 @@
 logits, applied to linear radiance, differentiably, on NCHW batches.
 
 The Rust core (src/reconstruct.rs) runs the same function at inference; the vectors this
-module writes (temc_train.recon_vectors -> tests/data/recon_vectors.json) keep the two
+module writes (temc_train.vectors.recon_vectors -> tests/data/recon_vectors.json) keep the two
 within 1e-5. Non-finite logits: NaN -> 0, everything clamped to +-LOGIT_MAX, in both.
 """
 

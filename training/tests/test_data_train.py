@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from temc_train import data, export, train
+from temc_train import data
+from temc_train.drivers import export, train
 from temc_train.models import build
 from temc_train.reconstruct import reconstruct
 

@@ -7,7 +7,8 @@ import onnx
 import pytest
 import torch
 
-from temc_train import export, receptive
+from temc_train import receptive
+from temc_train.drivers import export
 from temc_train.models import ARCHS, build, checkpoint_recon
 
 

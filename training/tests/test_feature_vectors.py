@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from temc_train import color, feature_vectors
+from temc_train import color
+from temc_train.vectors import feature_vectors
 from temc_train.data import auto_input_scale
 
 from test_color_vectors import arr, num
@@ -16,7 +17,7 @@ from test_color_vectors import arr, num
 @pytest.fixture(scope="module")
 def vectors():
     if not feature_vectors.OUT.exists():
-        pytest.skip(f"{feature_vectors.OUT} is absent: python -m temc_train.feature_vectors")
+        pytest.skip(f"{feature_vectors.OUT} is absent: python -m temc_train.vectors.feature_vectors")
     return json.loads(feature_vectors.OUT.read_text())
 
 

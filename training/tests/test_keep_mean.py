@@ -10,7 +10,7 @@ from temc_train import keep_mean as km
 
 
 def test_vectors_are_current():
-    """Regenerate with `python -m temc_train.keep_mean` when the stage changes."""
+    """Regenerate with `python -m temc_train.vectors.keep_mean` when the stage changes."""
     want = json.loads(km.VECTORS.read_text())
     got = km.vector_cases()
     assert [c["name"] for c in got] == [c["name"] for c in want]

@@ -3,7 +3,7 @@ import torch
 
 from temc_train.models import ARCHS, KERNEL, LEVELS, build, count_params, filter_channels
 
-# Parameter counts at width 1.0, from ../shared/reference/temc-architecture.md:
+# Parameter counts at width 1.0, from docs/reference/temc-architecture.md:
 # (conv/deconv weights and biases, batch-norm gamma/beta).
 EXPECTED = {
     # DEMC on HSV (3 channels in, 3 out) is exactly the note's DEMC: 44.85 M.

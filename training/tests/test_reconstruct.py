@@ -11,7 +11,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from temc_train import recon_vectors
+from temc_train.vectors import recon_vectors
 from temc_train.reconstruct import LINEAR_MAX, LOGIT_MAX, LUMA, channels, reach, reconstruct
 
 VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"

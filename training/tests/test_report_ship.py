@@ -17,7 +17,9 @@ import pytest
 import torch
 
 from temc_train import evaluate as ev
-from temc_train import models, report, ship, train
+from temc_train import models
+from temc_train.drivers import ship, train
+from temc_train.probes import report
 
 from test_data_train import fake_scene, write_exr
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from temc_train import data, export, ship, shard, train
+from temc_train import data
+from temc_train.drivers import export, shard, ship, train
 from test_data_train import dataset  # noqa: F401  (the fixture)
 
 TRAIN_ARGS = ["--arch", "ae", "--width", "0.0625", "--crop", "32", "--batch", "2",

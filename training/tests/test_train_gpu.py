@@ -11,7 +11,8 @@ import time
 
 import torch
 
-from temc_train import data, export, train
+from temc_train import data
+from temc_train.drivers import export, train
 from test_data_train import dataset  # noqa: F401  (the fixture)
 from test_shard import whole  # noqa: F401  (the fixture)
 
@@ -57,7 +58,7 @@ def test_two_gloo_processes_train_one_model_that_resumes_alone(whole, tmp_path):
             "--val-minutes", "0", "--amp", "bf16", "--channels-last", "1", "--schedule", "onecycle",
             "--lr-batch", "2"] + TINY
     run([sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node", "2",
-         "-m", "temc_train.train"] + args + ["--max-steps", "3"], OMP_NUM_THREADS="1")
+         "-m", "temc_train.drivers.train"] + args + ["--max-steps", "3"], OMP_NUM_THREADS="1")
     st = steps(runs)
     assert st["step"] == 3 and st["hparams"]["processes"] == 2 and st["hparams"]["amp"] == "bf16"
     with open(os.path.join(runs, "log.csv")) as f:

@@ -1,7 +1,7 @@
 """How much of a denoiser's error sits beside bright emitters, and what the fixed range
 term (reconstruct.fixed_range_term) does to it: issue 36, item 1.
 
-    python -m temc_train.leak_probe --data ../data/cycles-family \\
+    python -m temc_train.probes.leak_probe --data ../data/cycles-family \\
         --run runs/temc2-w0.125-energy --oidn --out ../docs/leak-probe.md
 
 Both variants run the same checkpoint's network; only the reconstruction's fixed range term
@@ -22,10 +22,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from . import data, evaluate
-from .export import load_checkpoint, recon_of
+from .. import data, evaluate
+from ..checkpoint import load_checkpoint
+from ..onnx_export import recon_of
+from ..reconstruct import LUMA
 from .probe import denoise, evaluate_oidn
-from .reconstruct import LUMA
 
 BRIGHT = 8.0
 NEAR = 8
@@ -109,7 +110,7 @@ def main(argv=None):
     spps = sorted({spp for r in rows.values() for spp in r})
     lines = [
         "# The fixed range term against lamp leaks (issue 36, item 1)", "",
-        f"Regenerate: `cd training && python -m temc_train.leak_probe --data {a.data} --run {a.run}"
+        f"Regenerate: `cd training && python -m temc_train.probes.leak_probe --data {a.data} --run {a.run}"
         + (" --oidn" if a.oidn else "") + f" --out {a.out}`.", "",
         f"{len(scenes)} test scenes of `{os.path.basename(os.path.normpath(a.data))}`, whole images, "
         "full aux, through the network of the run's checkpoint and reconstruct.py (the core's "

@@ -2,10 +2,11 @@
 float64 PyTorch result, so the Rust core (reconstruct::tests) and this module
 (tests/test_reconstruct.py) check themselves against one reference.
 
-Run from training/: python -m temc_train.recon_vectors. Inputs are written as short
+Run from training/: python -m temc_train.vectors.recon_vectors. Inputs are written as short
 decimals that both sides read as float32; non-finite values as "nan", "inf", "-inf".
 """
 
+import argparse
 import json
 import math
 import pathlib
@@ -13,9 +14,9 @@ import pathlib
 import numpy as np
 import torch
 
-from temc_train.reconstruct import LOGIT_MAX, channels, reconstruct
+from ..reconstruct import LOGIT_MAX, channels, reconstruct
 
-OUT = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
+OUT = pathlib.Path(__file__).resolve().parents[3] / "tests" / "data" / "recon_vectors.json"
 TOLERANCE = 1e-5
 SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
@@ -118,7 +119,9 @@ def _flat(a, digits=None):
     return [_num(float(f"{v:.{digits}g}") if digits else v) for v in np.asarray(a).ravel()]
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.parse_args(argv)  # --help; no options
     doc = {"tolerance": TOLERANCE, "logit_max": LOGIT_MAX, "cases": []}
     for case in cases():
         out = run(case, torch.float64)

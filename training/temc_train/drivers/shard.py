@@ -2,7 +2,7 @@
 travels with the working tree to a machine with a GPU and PyTorch but no Rust toolchain,
 no renderer and no network (`scripts/train-gpu`).
 
-    python -m temc_train.shard --data ../data/spectral-v2 --out shards/v2.npz --max-mib 60 \\
+    python -m temc_train.drivers.shard --data ../data/spectral-v2 --out shards/v2.npz --max-mib 60 \\
         [--crop 128] [--crops-per-scene 1] [--val-mib 8] [--seed 0]
 
 The file is a zip (`.npz`, deflated) of float16 arrays, one group per item, plus
@@ -37,7 +37,7 @@ import zlib
 
 import numpy as np
 
-from . import data
+from .. import data
 
 F16_MAX = 65504.0
 FORMAT = "temc-shard"

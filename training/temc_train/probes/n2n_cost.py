@@ -2,7 +2,7 @@
 scene, noisy inputs against the clean reference against a reference prefix (a prefix of
 `p` spp costs p / ref_spp of the reference render, which is progressive).
 
-    python -m temc_train.n2n_cost --data ../data/spectral-v2 --prefix-spp 64
+    python -m temc_train.probes.n2n_cost --data ../data/spectral-v2 --prefix-spp 64
 
 Prints one paragraph (Markdown) for docs/noise2noise.md.
 """

@@ -1,7 +1,7 @@
 """Aux prefiltering, temc's against OIDN's, on our scenes (issue 16: an "RT" filter given
 only albedo or only normal denoises that image).
 
-    python -m temc_train.prefilter_compare --data ../data/spectral-v2 \\
+    python -m temc_train.probes.prefilter_compare --data ../data/spectral-v2 \\
         --lib ../target/release/libtemc.so --out ../docs/prefilter.md
 
 For every validation and test scene and noisy spp, the noisy albedo and normal are
@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from . import data
+from .. import data
 
 FLOAT3 = 3
 DEVICE_CPU = 1

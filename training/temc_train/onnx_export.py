@@ -1,16 +1,9 @@
-"""Export temc models to ONNX with their metadata, checked against onnxruntime.
+"""ONNX export of temc models with their metadata, checked against onnxruntime (the
+library half of drivers/export.py, which is the command line; drivers/train.py and
+drivers/ship.py export through it too). The graph's outputs are the filter logits
+`filters0` .. `filters{L-1}` (docs/reconstruction.md); the reconstruction itself runs in
+the core."""
 
-    python -m temc_train.export --arch temc2 --width 0.125 --out m.onnx [--seed S] [--variant fused]
-    python -m temc_train.export --checkpoint run.pt --out m.onnx [--dataset D --train-steps N --test-relmse X]
-    python -m temc_train.export --golden ../tests/data
-
-The first form writes one model with random weights (benchmarks use this), the second a
-trained one (see load_checkpoint). The third writes the untrained test models of every
-architecture and their golden input/output tensors for the Rust parity tests
-(docs/contracts.md §3). The graph's outputs are the filter logits `filters0` ..
-`filters{L-1}` (docs/reconstruction.md); the reconstruction itself runs in the core."""
-
-import argparse
 import os
 import warnings
 
@@ -20,7 +13,7 @@ import torch
 from torch import nn
 
 from . import color, fuse, receptive
-from .models import ALIGNMENT, ARCHS, AUX, CHROMA, LUMA, RECON_DEFAULTS, build, checkpoint_recon
+from .models import ALIGNMENT, AUX, CHROMA, LUMA, RECON_DEFAULTS
 
 OPSET = 17
 INPUTS = ("chroma", "luma", "aux")
@@ -178,102 +171,3 @@ def export(model: nn.Module, path: str, meta: dict, variant: str = "plain",
     os.replace(tmp, path)
     return diff
 
-
-def write_golden(root: str, seed: int = 7) -> None:
-    """Writes tests/data/models/<arch>_w0.0625.onnx and tests/data/golden/<arch>_w0.0625/."""
-    os.makedirs(os.path.join(root, "models"), exist_ok=True)
-    for i, arch in enumerate(ARCHS):
-        torch.manual_seed(seed + i)
-        model = build(arch, GOLDEN_WIDTH)
-        randomize_untrained(model, seed + i)
-        name = f"{arch}_w{GOLDEN_WIDTH}"
-        path = os.path.join(root, "models", name + ".onnx")
-        meta = metadata(arch, GOLDEN_WIDTH, recon_of(model), description=(
-            f"untrained {arch} at width {GOLDEN_WIDTH}, random weights (seed {seed + i}); "
-            "for parity tests only"))
-        diff = export(model, path, meta)
-        xs = example_inputs(*GOLDEN_SIZE, seed=seed + 100 + i)
-        out = run_ort(path, xs)
-        gdir = os.path.join(root, "golden", name)
-        os.makedirs(gdir, exist_ok=True)
-        for n, x in zip(INPUTS, xs):
-            np.save(os.path.join(gdir, n + ".npy"), x.numpy().astype("<f4"))
-        for name_l, o in zip(output_names(model.levels), out):
-            np.save(os.path.join(gdir, name_l + ".npy"), o.astype("<f4"))
-        print(f"{name}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px")
-
-
-def load_checkpoint(path: str, arch=None, width=None):
-    """A model from a checkpoint: torch.save of either a bare state_dict (then arch and
-    width must be given) or a dict {"model": state_dict, "arch", "width", and optionally
-    "dataset", "train_steps", "test_relmse"}. Returns (model, arch, width, info) where info
-    holds the optional fields found."""
-    ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    if "model" in ckpt and isinstance(ckpt["model"], dict):
-        state = ckpt["model"]
-        for key, given in (("arch", arch), ("width", width)):
-            if given is not None and key in ckpt and ckpt[key] != given:
-                raise ValueError(f"{path}: checkpoint has {key} {ckpt[key]!r}, not {given!r}")
-        arch = ckpt.get("arch", arch)
-        width = ckpt.get("width", width)
-        info = {k: ckpt[k] for k in ("dataset", "train_steps", "test_relmse") if k in ckpt}
-        if "state" in ckpt:  # a training checkpoint (train.py): steps from its state
-            info.setdefault("train_steps", ckpt["state"]["step"])
-        recon = checkpoint_recon(ckpt)
-    else:
-        state, info, recon = ckpt, {}, dict(RECON_DEFAULTS)
-    if arch is None or width is None:
-        raise ValueError(f"{path}: a bare state_dict needs --arch and --width")
-    model = build(arch, float(width), recon["levels"], recon["kernel"], recon["split"],
-                  recon["guide"])
-    model.load_state_dict(state)
-    model.demodulate, model.eps = recon["demodulate"], recon["eps"]
-    model.fixed_range = recon["fixed_range"]
-    return model, arch, float(width), info
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--arch", choices=ARCHS)
-    ap.add_argument("--width", type=float, help="width multiplier (default 1.0, or the checkpoint's)")
-    ap.add_argument("--out")
-    ap.add_argument("--checkpoint", help="trained weights (see load_checkpoint); random if absent")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the random weights")
-    ap.add_argument("--variant", choices=("plain", "fused"), default="plain")
-    ap.add_argument("--dataset", help="temc.dataset (default: the checkpoint's, else none)")
-    ap.add_argument("--train-steps", type=int, help="temc.train_steps")
-    ap.add_argument("--test-relmse", type=float, help="temc.test_relmse")
-    ap.add_argument("--description", help="temc.description")
-    ap.add_argument("--golden", metavar="DIR", help="write test models and goldens under DIR")
-    a = ap.parse_args()
-    torch.set_num_threads(2)
-    if a.golden:
-        write_golden(a.golden)
-        return
-    if not a.out or not (a.arch or a.checkpoint):
-        ap.error("--out and --arch (or --checkpoint) are required, or --golden DIR")
-    if a.checkpoint:
-        model, arch, width, info = load_checkpoint(a.checkpoint, a.arch, a.width)
-        what = f"{arch} at width {width} from {os.path.basename(a.checkpoint)}"
-    else:
-        arch, width, info = a.arch, 1.0 if a.width is None else a.width, {}
-        torch.manual_seed(a.seed)
-        model = build(arch, width)
-        randomize_untrained(model, a.seed)
-        what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
-    overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
-    info.update({k: v for k, v in overrides.items() if v is not None})
-    recon = recon_of(model)
-    # Trained weights carry their measured reach; random ones the theoretical bound.
-    overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None
-    meta = metadata(arch, width, recon, dataset=info.get("dataset", "none"),
-                    steps=info.get("train_steps", 0), test_relmse=info.get("test_relmse"),
-                    description=a.description if a.description is not None else what,
-                    tile_overlap=overlap)
-    diff = export(model, a.out, meta, variant=a.variant)
-    print(f"{a.out}: onnxruntime vs PyTorch {diff:.2e}, RF {meta['temc.receptive_field']} px, "
-          f"overlap {meta['temc.tile_overlap']} px")
-
-
-if __name__ == "__main__":
-    main()

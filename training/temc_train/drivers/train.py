@@ -1,7 +1,7 @@
 """Train one architecture on a `temc-render dataset` folder, resumably, on a wall-clock
 budget.
 
-    python -m temc_train.train --data ../data/spectral-v1 --arch temc2 --width 0.125 \\
+    python -m temc_train.drivers.train --data ../data/spectral-v1 --arch temc2 --width 0.125 \\
         --run runs/temc2-w0.125-energy --hours 1.5
 
 The budget counts the CPU seconds (process time) spent in training steps, validation
@@ -12,7 +12,7 @@ means nothing, so there a step counts its wall seconds, kept apart in the checkp
 `gpu_seconds` (`train_s` stays CPU seconds); `--hours` then bounds `train_s + gpu_seconds`.
 `--minutes` bounds this invocation's wall clock (from start, loading included; the loop
 stops after the first step past it, then validates and saves), whichever comes first.
-`--shard FILE` trains on a compact shard (`shard.py`) instead of a data set folder, for a
+`--shard FILE` trains on a compact shard (`drivers/shard.py`) instead of a data set folder, for a
 machine without the renderer. GPU runs (`scripts/train-gpu`, training/README.md) add
 `--sampler device` (batches drawn on the device, `device_batches.py`), `--amp bf16`,
 `--channels-last 1` and `--schedule onecycle`, and run under torchrun across GPUs and
@@ -23,7 +23,11 @@ RUN/checkpoint.pt (model, optimiser, step, clock and random state), saved every
 budget counts: `train_s + gpu_seconds`), the training and validation loss and the device
 the steps ran on, which is what the accuracy report plots as training time against
 validation loss. RUN/model.pt is the final checkpoint in the form `export.py --checkpoint`
-reads.
+reads. Both files are written and read as `checkpoint.Checkpoint`, which upgrades older runs.
+
+One invocation is `resume` (the data, the model and optimiser from RUN/checkpoint.pt, the
+run's state), then `loop` (each iteration one `step`, validating and saving as it goes),
+then the final save in `train`.
 
 Recipe (the paper's where it fits): Adam, random 128x128 crops with flips and rotations,
 the L1 + MS-SSIM mix loss (`loss.py`) taken on PQ R'G'B' of the reconstructed output
@@ -46,19 +50,13 @@ import time
 import numpy as np
 import torch
 
-from . import data, shard
+from .. import data
+from ..checkpoint import CHECKPOINT_LIMIT, Checkpoint  # noqa: F401  (CHECKPOINT_LIMIT: re-exported)
+from ..loss import ALPHA, noise2noise_loss, training_loss
+from ..models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params  # noqa: F401
+from ..reconstruct import reconstruct
+from . import shard
 from .distributed import Group
-from .loss import ALPHA, noise2noise_loss, training_loss
-from .models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params
-from .reconstruct import reconstruct
-
-CHECKPOINT_LIMIT = 20 * 2**20
-
-
-def _save(obj, path):
-    tmp = path + f".tmp-{os.getpid()}"
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
 
 
 def recon_settings(a) -> dict:
@@ -117,23 +115,24 @@ def _grow(old: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     return rows
 
 
-def add_guide(model, ck: dict) -> None:
-    """Loads a checkpoint trained without guide channels into `model` (built with them):
-    every weight is kept and the heads' guide rows keep their small random start, so the
-    run goes on where it was (the range term is near zero at first). Adam's moments are
-    kept too, zero for the new rows: restarting Adam cost a trained model 16 % of its
-    validation loss in ten steps."""
+def add_guide(model, ck) -> None:
+    """Loads a checkpoint (a Checkpoint, or the dict torch.load gives) trained without guide
+    channels into `model` (built with them): every weight is kept and the heads' guide rows
+    keep their small random start, so the run goes on where it was (the range term is near
+    zero at first). Adam's moments are kept too, zero for the new rows: restarting Adam cost
+    a trained model 16 % of its validation loss in ten steps."""
+    ck = Checkpoint.from_dict(ck)
     own = model.state_dict()
-    for k, v in ck["model"].items():
+    for k, v in ck.model.items():
         own[k] = v if own[k].shape == v.shape else _grow(v, own[k])
     model.load_state_dict(own)
-    if ck.get("opt") is not None:
+    if ck.opt is not None:
         params = [p for p in model.parameters()]
-        for i, st in ck["opt"]["state"].items():
+        for i, st in ck.opt["state"].items():
             for n in ("exp_avg", "exp_avg_sq"):
                 if n in st and st[n].shape != params[int(i)].shape:
                     st[n] = _grow(st[n], torch.zeros_like(params[int(i)], dtype=st[n].dtype))
-    ck["recon"] = dict(ck["recon"], guide=True)
+    ck.recon = dict(ck.recon, guide=True)
 
 
 # The finest level's blend logits when coarser levels are added: sigmoid(-4) = 0.018, so the
@@ -141,32 +140,34 @@ def add_guide(model, ck: dict) -> None:
 GROWN_BLEND_LOGIT = -4.0
 
 
-def add_levels(model, ck: dict) -> None:
-    """Loads a checkpoint with fewer pyramid levels into `model` (built with more): every
+def add_levels(model, ck) -> None:
+    """Loads a checkpoint (a Checkpoint, or the dict torch.load gives) with fewer pyramid
+    levels into `model` (built with more): every
     weight is kept by name (the decoder already computes the coarser features; only their
     zero-initialised heads are new) and Adam's moments follow their parameters. The finest
     head's blend logits, never used while it was the coarsest level, start at
     GROWN_BLEND_LOGIT, so the run goes on from the old model's output and learns how far to
     take low frequencies from the new, further-reaching levels."""
+    ck = Checkpoint.from_dict(ck)
     heads = [m for m in model.modules() if isinstance(m, FilterHeads)]
     if len(heads) != 1 or heads[0].part != "both":
-        raise SystemExit(f"growing levels needs one head set predicting both filters ({ck['arch']})")
+        raise SystemExit(f"growing levels needs one head set predicting both filters ({ck.arch})")
     new_names = [n for n, _ in model.named_parameters()]
     # The old model's parameters in its own order: a state_dict lists them as
     # named_parameters does, with the buffers in between.
     known = set(new_names)
-    old_names = [k for k in ck["model"] if k in known]
+    old_names = [k for k in ck.model if k in known]
     own = model.state_dict()
-    own.update(ck["model"])
+    own.update(ck.model)
     model.load_state_dict(own)
-    n = checkpoint_recon(ck)["kernel"] ** 2
+    n = ck.recon["kernel"] ** 2
     with torch.no_grad():
         heads[0].convs[0].bias[2 * n:2 * n + 2] = GROWN_BLEND_LOGIT
-    if ck.get("opt") is not None:
+    if ck.opt is not None:
         index = {name: i for i, name in enumerate(new_names)}
-        ck["opt"]["state"] = {index[old_names[int(i)]]: st for i, st in ck["opt"]["state"].items()}
-        ck["opt"]["param_groups"][0]["params"] = list(range(len(new_names)))
-    ck["recon"] = dict(ck["recon"], levels=model.levels)
+        ck.opt["state"] = {index[old_names[int(i)]]: st for i, st in ck.opt["state"].items()}
+        ck.opt["param_groups"][0]["params"] = list(range(len(new_names)))
+    ck.recon = dict(ck.recon, levels=model.levels)
 
 
 LR_FLOOR = 0.05
@@ -281,7 +282,7 @@ class BatchSource:
         if a.sampler == "device":
             if a.target_spp:
                 raise SystemExit("--sampler device does not do Noise2Noise targets (--target-spp)")
-            from .device_batches import DeviceSet
+            from ..device_batches import DeviceSet
 
             self.set = DeviceSet(device)
             self.set.add(scenes)
@@ -337,11 +338,11 @@ def load_data(a):
 
 def resume_model(a, model, ckpt_path, rs):
     """Loads RUN/checkpoint.pt into `model` when there is one, adding guide channels or
-    pyramid levels the command asks for; returns the checkpoint (None for a new run)."""
+    pyramid levels the command asks for; returns the Checkpoint (None for a new run)."""
     if not os.path.exists(ckpt_path):
         return None
-    ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-    held_recon = checkpoint_recon(ck)
+    ck = Checkpoint.read(ckpt_path)
+    held_recon = dict(ck.recon)
     upgrade = a.guide and not held_recon["guide"]
     if upgrade:
         held_recon["guide"] = True
@@ -351,22 +352,22 @@ def resume_model(a, model, ckpt_path, rs):
     if held_recon["fixed_range"] != rs["fixed_range"]:
         # A fixed term, nothing to learn or load: a run may switch it at any step.
         held_recon["fixed_range"] = rs["fixed_range"]
-        ck["recon"] = dict(ck.get("recon") or {}, fixed_range=rs["fixed_range"])
-        ck["state"]["fixed_range_from_step"] = ck["state"]["step"]
-    held = (ck["arch"], ck["width"], held_recon)
+        ck.recon = dict(ck.recon, fixed_range=rs["fixed_range"])
+        ck.state["fixed_range_from_step"] = ck.state["step"]
+    held = (ck.arch, ck.width, held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
     if upgrade:
         add_guide(model, ck)
-        ck["state"]["guide_from_step"] = ck["state"]["step"]
+        ck.state["guide_from_step"] = ck.state["step"]
         print(f"{ckpt_path}: adding the guide channels", flush=True)
     elif grow:
-        from_levels = checkpoint_recon(ck)["levels"]
+        from_levels = ck.recon["levels"]
         add_levels(model, ck)
-        ck["state"]["levels_from"] = [ck["state"]["step"], from_levels]
+        ck.state["levels_from"] = [ck.state["step"], from_levels]
         print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
     else:
-        model.load_state_dict(ck["model"])
+        model.load_state_dict(ck.model)
     return ck
 
 
@@ -379,13 +380,58 @@ def hparams(a, world: int) -> dict:
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
 
 
-def train(a) -> dict:
+class Session:
+    """One invocation of `train`: what `resume` sets up and `step`, `loop` and the final
+    save share. `state` is the run's (step, clock, random state, what the card reads);
+    `meter` this invocation's throughput."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+        self.batches = self.log = self.w = None
+        self.meter = {"crops": 0, "seconds": 0.0}
+        self.amp = torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.a.amp == "bf16")
+        self.layout = torch.channels_last if self.a.channels_last else torch.contiguous_format
+
+    def used(self) -> float:
+        """Training seconds so far, what `--hours` bounds: CPU seconds plus GPU seconds."""
+        return self.state["train_s"] + self.state["gpu_seconds"]
+
+    def throughput(self) -> dict:
+        """This session's throughput: crops over the wall seconds of its steps (validation
+        and checkpoints excluded), every process counted; the card reports it."""
+        a, m = self.a, self.meter
+        return {"crops_per_s": m["crops"] / max(m["seconds"], 1e-9), "device": self.device.type,
+                "processes": self.group.world, "batch": a.batch, "amp": a.amp,
+                "steps": m["crops"] // (a.batch * self.group.world)}
+
+    def checkpoint(self) -> None:
+        """Saves RUN/checkpoint.pt (Checkpoint.write: refused with non-finite weights,
+        without Adam's moments past CHECKPOINT_LIMIT)."""
+        state = self.state
+        state["rng"] = self.rng.bit_generator.state
+        # The model card says what the run saw. Sessions on fresh machines train on the
+        # part of the set rendered there, so the count kept is the largest set seen at once.
+        prior = state.get("train_scenes")
+        state["train_scenes"] = max(len(self.batches.scenes), prior if isinstance(prior, int) else 0)
+        state["session_scenes"] = len(self.batches.scenes)
+        state["hparams"] = hparams(self.a, self.group.world)
+        if self.meter["crops"]:
+            state["throughput"] = self.throughput()
+        Checkpoint(model=cpu_state(self.model.state_dict()),
+                   opt=compact_optimizer_state(self.opt.state_dict()), state=state,
+                   arch=self.a.arch, width=self.a.width, recon=self.rs,
+                   dataset=self.dataset).write(self.ckpt_path)
+
+
+def resume(a) -> Session:
+    """Starts the invocation: the device (and the process group), the data, the model,
+    loaded from RUN/checkpoint.pt where there is one (grown as the command asks), Adam with
+    its moments, and the run's state and random stream; a new run starts at step 0."""
     start = time.monotonic()
     torch.set_num_threads(a.threads)
     group = Group()
     device = group.start(pick_device(a.device))
-    cuda = device.type == "cuda"
-    if cuda:
+    if device.type == "cuda":
         torch.backends.cudnn.benchmark = True
     os.makedirs(a.run, exist_ok=True)
     ckpt_path = os.path.join(a.run, "checkpoint.pt")
@@ -402,10 +448,9 @@ def train(a) -> dict:
     model.to(device, memory_format=torch.channels_last if a.channels_last else torch.contiguous_format)
     opt = torch.optim.Adam(model.parameters(), lr=a.lr)
     if ck is not None:
-        if ck.get("opt") is not None:
-            restore_optimizer_state(opt, ck["opt"])  # moves the moments to the parameters' device
-        state = ck["state"]
-        state.setdefault("gpu_seconds", 0.0)
+        if ck.opt is not None:
+            restore_optimizer_state(opt, ck.opt)  # moves the moments to the parameters' device
+        state = ck.state  # Checkpoint.read gave an old run its gpu_seconds
         if a.mean_weight and not state.get("hparams", {}).get("mean_weight"):
             state["mean_from_step"] = state["step"]  # the card says when the term joined
         if group.leader:
@@ -417,123 +462,117 @@ def train(a) -> dict:
     rng.bit_generator.state = state["rng"]
     if group.rank:  # every process its own crops
         rng = np.random.default_rng([a.seed, state["step"], group.rank])
-    log, w = open_log(os.path.join(a.run, "log.csv")) if group.leader else (None, None)
+    return Session(a=a, start=start, group=group, device=device, ckpt_path=ckpt_path,
+                   train_scenes=train_scenes, source=source, dataset=dataset, val=val, rs=rs,
+                   model=model, net=net, opt=opt, state=state, rng=rng)
+
+
+def step(s: Session) -> float:
+    """One optimiser step on the next batch; returns its loss. A non-finite loss or
+    gradient skips the update (counted in the state)."""
+    a, state = s.a, s.state
+    xs = s.batches.next()
+    xs[:3] = [x.contiguous(memory_format=s.layout) for x in xs[:3]]
+    out = denoise(s.net, xs, s.rs, s.amp)
+    loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
+            else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
+    s.opt.zero_grad(set_to_none=True)
+    loss.backward()
+    if finite_step(loss, s.model):
+        s.opt.step()
+    else:
+        # One NaN gradient would poison every weight and then the checkpoint: the
+        # batch is dropped (its time still counts) and the count goes in the card.
+        state["skipped_steps"] = state.get("skipped_steps", 0) + 1
+        print(f"step {state['step']}: non-finite loss or gradient, skipped "
+              f"({state['skipped_steps']} so far)", flush=True)
+    return float(loss.detach())  # waits for the device: the step's time is all in
+
+
+def loop(s: Session) -> None:
+    """Steps until the budget (`--hours`), `--max-steps` or `--minutes` is reached, every
+    process stopping together; validates (and takes in newly rendered scenes) every
+    `--val-minutes` and saves every `--save-minutes`, both at the end too. Opens RUN/log.csv
+    (s.log, closed by `train`) and leaves the batch source closed."""
+    a, state, group, device = s.a, s.state, s.group, s.device
+    cuda = device.type == "cuda"
+    if group.leader:
+        s.log, s.w = open_log(os.path.join(a.run, "log.csv"))
     budget = a.hours * 3600.0
     wall = float("inf") if a.minutes is None else a.minutes * 60.0
-    used = lambda: state["train_s"] + state["gpu_seconds"]  # noqa: E731
     last_save = last_val = time.monotonic()
     ema = None
-    amp = torch.autocast(device.type, dtype=torch.bfloat16, enabled=a.amp == "bf16")
-    layout = torch.channels_last if a.channels_last else torch.contiguous_format
-
-    def checkpoint():
-        state["rng"] = rng.bit_generator.state
-        # The model card says what the run saw. Sessions on fresh machines train on the
-        # part of the set rendered there, so the count kept is the largest set seen at once.
-        prior = state.get("train_scenes")
-        state["train_scenes"] = max(len(batches.scenes), prior if isinstance(prior, int) else 0)
-        state["session_scenes"] = len(batches.scenes)
-        state["hparams"] = hparams(a, group.world)
-        if session["crops"]:
-            state["throughput"] = throughput()
-        ck = {"model": cpu_state(model.state_dict()),
-              "opt": compact_optimizer_state(opt.state_dict()),
-              "state": state, "arch": a.arch, "width": a.width, "recon": rs, "dataset": dataset}
-        if not all(torch.isfinite(v).all() for v in ck["model"].values() if v.is_floating_point()):
-            raise SystemExit(f"{ckpt_path}: non-finite weights; the last checkpoint is kept")
-        _save(ck, ckpt_path)
-        if os.path.getsize(ckpt_path) > CHECKPOINT_LIMIT:
-            ck["opt"] = None
-            _save(ck, ckpt_path)
-
-    def step():
-        """One optimiser step; returns its loss."""
-        xs = batches.next()
-        xs[:3] = [x.contiguous(memory_format=layout) for x in xs[:3]]
-        out = denoise(net, xs, rs, amp)
-        loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
-                else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        if finite_step(loss, model):
-            opt.step()
-        else:
-            # One NaN gradient would poison every weight and then the checkpoint: the
-            # batch is dropped (its time still counts) and the count goes in the card.
-            state["skipped_steps"] = state.get("skipped_steps", 0) + 1
-            print(f"step {state['step']}: non-finite loss or gradient, skipped "
-                  f"({state['skipped_steps']} so far)", flush=True)
-        return float(loss.detach())  # waits for the device: the step's time is all in
-
     if state["step"] == 0:
-        state["first_train_scenes"] = len(train_scenes)
+        state["first_train_scenes"] = len(s.train_scenes)
         if group.leader:
-            w.writerow([0, 0.0, "", f"{validate(model, val, a.alpha, rs, a.rel_weight, device=device):.6f}", device.type])
-            log.flush()
-    model.train()
-    batches = BatchSource(a, train_scenes, device, rng, [a.seed, state["step"], group.rank])
+            s.w.writerow([0, 0.0, "", f"{validate(s.model, s.val, a.alpha, s.rs, a.rel_weight, device=device):.6f}",
+                          device.type])
+            s.log.flush()
+    s.model.train()
+    s.batches = BatchSource(a, s.train_scenes, device, s.rng, [a.seed, state["step"], group.rank])
     if group.leader:
-        print(f"training on {device.type} x {group.world} ({len(train_scenes)} scenes from {source}, "
+        print(f"training on {device.type} x {group.world} ({len(s.train_scenes)} scenes from {s.source}, "
               f"sampler {a.sampler})", flush=True)
-    done = used() >= budget or state["step"] >= a.max_steps
-    cycle = start_cycle(a, state, used())
-    # This session's throughput: crops over the wall seconds of its steps (validation and
-    # checkpoints excluded), every process counted; the card reports it.
-    session = {"crops": 0, "seconds": 0.0}
-
-    def throughput():
-        return {"crops_per_s": session["crops"] / max(session["seconds"], 1e-9), "device": device.type,
-                "processes": group.world, "batch": a.batch, "amp": a.amp,
-                "steps": session["crops"] // (a.batch * group.world)}
+    done = s.used() >= budget or state["step"] >= a.max_steps
+    cycle = start_cycle(a, state, s.used())
     while not group.any(done, device):
         wall0 = time.monotonic()
         t0 = wall0 if cuda else time.process_time()
-        for g in opt.param_groups:
-            g["lr"] = learning_rate(a, used(), cycle, group.world)
-        loss = step()
+        for g in s.opt.param_groups:
+            g["lr"] = learning_rate(a, s.used(), cycle, group.world)
+        loss = step(s)
         # Device seconds of every process: a budget is compute, however it is split.
         if cuda:
             state["gpu_seconds"] += (time.monotonic() - t0) * group.world
         else:
             state["train_s"] += (time.process_time() - t0) * group.world
         state["step"] += 1
-        session["crops"] += a.batch * group.world
-        session["seconds"] += time.monotonic() - wall0
+        s.meter["crops"] += a.batch * group.world
+        s.meter["seconds"] += time.monotonic() - wall0
         ema = loss if ema is None else 0.98 * ema + 0.02 * loss
         now = time.monotonic()
-        done = used() >= budget or state["step"] >= a.max_steps or now - start >= wall
+        done = s.used() >= budget or state["step"] >= a.max_steps or now - s.start >= wall
         if now - last_val >= a.val_minutes * 60 or done:
             if not a.shard:
-                batches.refresh([a.seed, state["step"], group.rank])
+                s.batches.refresh([a.seed, state["step"], group.rank])
             if group.leader:
-                v = validate(model, val, a.alpha, rs, a.rel_weight, device=device)
-                w.writerow([state["step"], f"{used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
-                log.flush()
-                print(f"step {state['step']}  {used():.0f}/{budget:.0f} s  "
-                      f"train {ema:.4f}  val {v:.4f}  lr {opt.param_groups[0]['lr']:.2e}  "
-                      f"{throughput()['crops_per_s']:.0f} crops/s", flush=True)
+                v = validate(s.model, s.val, a.alpha, s.rs, a.rel_weight, device=device)
+                s.w.writerow([state["step"], f"{s.used():.1f}", f"{ema:.6f}", f"{v:.6f}", device.type])
+                s.log.flush()
+                print(f"step {state['step']}  {s.used():.0f}/{budget:.0f} s  "
+                      f"train {ema:.4f}  val {v:.4f}  lr {s.opt.param_groups[0]['lr']:.2e}  "
+                      f"{s.throughput()['crops_per_s']:.0f} crops/s", flush=True)
             last_val = time.monotonic()
         if group.leader and (now - last_save >= a.save_minutes * 60 or done):
-            checkpoint()
+            s.checkpoint()
             last_save = time.monotonic()
-    batches.close()
-    final = {"model": cpu_state(model.state_dict()), "arch": a.arch, "width": a.width, "recon": rs,
-             "dataset": dataset, "train_steps": state["step"], "train_seconds": state["train_s"],
-             "gpu_seconds": state["gpu_seconds"], "params": count_params(model)}
-    if group.leader:
-        checkpoint()
-        log.close()
-        _save(final, os.path.join(a.run, "model.pt"))
+    s.batches.close()
+
+
+def train(a) -> dict:
+    """One invocation: `resume`, `loop`, then the final checkpoint, RUN/model.pt and the
+    ONNX file (`--export`). Returns model.pt's dict."""
+    s = resume(a)
+    loop(s)
+    st = s.state
+    final = Checkpoint(model=cpu_state(s.model.state_dict()), arch=a.arch, width=a.width, recon=s.rs,
+                       dataset=s.dataset,
+                       summary={"train_steps": st["step"], "train_seconds": st["train_s"],
+                                "gpu_seconds": st["gpu_seconds"], "params": count_params(s.model)})
+    if s.group.leader:
+        s.checkpoint()
+        s.log.close()
+        final.write(os.path.join(a.run, "model.pt"))
         if a.export:
-            export_onnx(model, final, a.export)
-    group.barrier()
-    group.stop()
-    return final
+            export_onnx(s.model, final.to_dict(), a.export)
+    s.group.barrier()
+    s.group.stop()
+    return final.to_dict()
 
 
 def export_onnx(model, final: dict, path: str) -> None:
     """The run's ONNX file, checked against onnxruntime (export.py)."""
-    from .export import export, metadata
+    from ..onnx_export import export, metadata
 
     meta = metadata(final["arch"], final["width"], final["recon"], final["dataset"], final["train_steps"])
     diff = export(model.cpu().float(), path, meta)

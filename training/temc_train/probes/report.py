@@ -1,7 +1,7 @@
 """The accuracy-against-time report: every temc model, the raw renders and OIDN 2.5 on
 the data set's test scenes, measured in one run.
 
-    python -m temc_train.report --data ../data/spectral-v1 --temc ../target/release/temc \\
+    python -m temc_train.probes.report --data ../data/spectral-v1 --temc ../target/release/temc \\
         --model ../onnx/temc2-balanced.onnx --model ../onnx/baselines/demc.onnx ... \\
         --runs runs --out ../docs/accuracy-vs-time.md
 
@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from . import evaluate as ev
-from .models import ARCH_NAMES, label
+from .. import evaluate as ev
+from ..models import ARCH_NAMES, label
 
 HARD = ("named-cornell-spiky", "named-prism", "named-firefly", "named-dark-room", "named-laser")
 # The default page: the accuracy report of the project's own data set.

@@ -1,7 +1,7 @@
 """Ship the trained models: export each training run to onnx/ with its metadata, write its
 golden tensors for the Rust parity tests, and write its model card.
 
-    python -m temc_train.ship --runs runs --onnx ../onnx --golden ../tests/data/golden/shipped \\
+    python -m temc_train.drivers.ship --runs runs --onnx ../onnx --golden ../tests/data/golden/shipped \\
         [--measurements ../docs/img/accuracy/measurements.csv]
 
 Which run becomes which file is fixed by SHIPPED below (the quality modes were picked from
@@ -18,10 +18,10 @@ import os
 import numpy as np
 import torch
 
-from . import receptive
-from .export import (INPUTS, example_inputs, export, load_checkpoint, metadata, output_names,
-                     recon_of, run_ort)
-from .models import ARCH_NAMES, count_params, label
+from .. import receptive
+from ..checkpoint import Checkpoint
+from ..onnx_export import INPUTS, example_inputs, export, metadata, output_names, recon_of, run_ort
+from ..models import ARCH_NAMES, count_params, label
 
 # file (under onnx/) -> (run folder, quality mode or None for a baseline)
 SHIPPED = {
@@ -57,9 +57,6 @@ BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
-# The recipe of runs from before train.py stored it in the checkpoint (scripts/train-all).
-OLD_HPARAMS = {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
-               "rel_weight": 0.0, "mean_weight": 0.0, "target_spp": 0, "loss": "mix"}
 
 
 def read_log(run):
@@ -136,7 +133,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"{width:g} of the paper's channel counts. It is not the paper's model and its "
         "numbers are not the paper's.", "",
         "| | |", "|---|---|",
-        f"| architecture | {arch} ({ARCH_NAMES[arch]}, ../shared/reference/temc-architecture.md) |",
+        f"| architecture | {arch} ({ARCH_NAMES[arch]}, docs/reference/temc-architecture.md) |",
         f"| width multiplier | {width:g} |",
         f"| parameters | {ck['params'][0]:,} convolution + {ck['params'][1]:,} batch-norm |",
         f"| file size | {size / 2**20:.1f} MiB |",
@@ -252,19 +249,21 @@ def data_facts(root) -> dict:
             "train": n["train"]}
 
 
-def checkpoint_facts(ckpt_path, model, data_root) -> dict:
-    """What a card and the metadata say about a training checkpoint, from the checkpoint."""
-    raw = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-    st = raw["state"]
+def checkpoint_facts(ck, model, data_root) -> dict:
+    """What a card and the metadata say about a training checkpoint (a Checkpoint or its
+    path), from the checkpoint."""
+    if not isinstance(ck, Checkpoint):
+        ck = Checkpoint.read(ck)
+    st = ck.state
     return {"train_seconds": st["train_s"], "gpu_seconds": st.get("gpu_seconds", 0.0),
             "train_steps": st["step"],
             # Runs started before checkpoints named their data set trained on --data.
-            "dataset": raw.get("dataset") or os.path.basename(os.path.normpath(data_root or "unknown")),
+            "dataset": ck.dataset or os.path.basename(os.path.normpath(data_root or "unknown")),
             "params": count_params(model),
             "train_scenes": st.get("train_scenes", "an unrecorded number of"),
             "first_train_scenes": st.get("first_train_scenes"),
             "session_scenes": st.get("session_scenes"),
-            "hparams": {**OLD_HPARAMS, **st.get("hparams", {})},
+            "hparams": ck.recipe(),
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
             "fixed_range_from_step": st.get("fixed_range_from_step"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
@@ -292,8 +291,9 @@ def ship_one(a, file, run_name, mode, meas, data):
     ckpt_path = os.path.join(run, "checkpoint.pt")
     if not os.path.exists(ckpt_path):
         raise SystemExit(f"{ckpt_path}: not trained yet (scripts/train-all)")
-    model, arch, width, info = load_checkpoint(ckpt_path)
-    ck = checkpoint_facts(ckpt_path, model, a.data)
+    held = Checkpoint.read(ckpt_path)
+    model, arch, width = held.build()
+    ck = checkpoint_facts(held, model, a.data)
     recon = {**recon_of(model), **SHIP_RECON}
     overlap = max(receptive.effective_overlap(model, recon), MIN_OVERLAP.get(file, 0))
     test_relmse = table(meas, label(arch, width)).get(16, {}).get("RelMSE") if meas else None

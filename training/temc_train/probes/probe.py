@@ -1,6 +1,6 @@
 """Equal-budget design probes of the reconstruction (issue 14), evaluated in PyTorch.
 
-    python -m temc_train.probe --data ../data/spectral-v2 --runs runs/probe-* \\
+    python -m temc_train.probes.probe --data ../data/spectral-v2 --runs runs/probe-* \\
         --out ../docs/reconstruction-design.md
 
 Each run is a train.py checkpoint of one design (levels, split, demodulation). Every run is
@@ -19,9 +19,10 @@ import os
 import numpy as np
 import torch
 
-from . import color, data, evaluate
-from .export import load_checkpoint, recon_of
-from .reconstruct import denoise_image
+from .. import color, data, evaluate
+from ..checkpoint import Checkpoint
+from ..onnx_export import recon_of
+from ..reconstruct import denoise_image
 
 
 def denoise(model, recon, scene, s, keep=True):
@@ -93,7 +94,7 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--title", default="Reconstruction design probes (issue 14)")
     ap.add_argument("--regenerate", default="`scripts/design-probes` (trains every design below on "
-                    "the same CPU budget,\nthen runs `python -m temc_train.probe`)",
+                    "the same CPU budget,\nthen runs `python -m temc_train.probes.probe`)",
                     help="the command the page names for regenerating it")
     ap.add_argument("--note", default="", help="a paragraph placed after the table")
     a = ap.parse_args(argv)
@@ -105,9 +106,10 @@ def main(argv=None):
         ck = os.path.join(run, "checkpoint.pt")
         if not os.path.exists(ck):
             continue
-        model, arch, width, info = load_checkpoint(ck)
+        held = Checkpoint.read(ck)
+        model, arch, width = held.build()
         recon = recon_of(model)
-        st = torch.load(ck, map_location="cpu", weights_only=False)["state"]
+        st = held.state
         table.append((os.path.basename(run), describe(recon, st), st["train_s"], st["step"],
                       evaluate_run(model, recon, scenes)))
         print(f"evaluated {run}", flush=True)

@@ -1,6 +1,6 @@
 """Measures the keep-mean stage's settings on one trained model (docs/keep-mean.md).
 
-    python -m temc_train.keep_mean_probe --data ../data/spectral-v2 \\
+    python -m temc_train.probes.keep_mean_probe --data ../data/spectral-v2 \\
         --checkpoint runs/temc2-w0.125-energy/checkpoint.pt --out ../docs/keep-mean-measured.md
 
 Every validation and test image is denoised once through the network and reconstruct.py
@@ -17,9 +17,10 @@ import math
 import numpy as np
 import torch
 
-from . import color, data, evaluate
-from .export import load_checkpoint, recon_of
-from .keep_mean import interpolate, keep_mean, ratios, stage
+from .. import color, data, evaluate
+from ..checkpoint import load_checkpoint
+from ..keep_mean import interpolate, keep_mean, ratios, stage
+from ..onnx_export import recon_of
 from .probe import denoise
 
 
@@ -99,7 +100,7 @@ def main(argv=None):
     lines = [
         "# The keep-mean stage, measured",
         "",
-        "Regenerate: `cd training && python -m temc_train.keep_mean_probe --data ../data/spectral-v2 "
+        "Regenerate: `cd training && python -m temc_train.probes.keep_mean_probe --data ../data/spectral-v2 "
         f"--checkpoint {a.checkpoint} --splits {a.splits}" + (f" --spp {a.spp}" if a.spp else "")
         + " --out ../docs/keep-mean-measured.md`.",
         f"{len(scenes)} whole images of the {a.splits} split(s), full aux, denoised once by the",

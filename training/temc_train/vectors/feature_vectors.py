@@ -3,21 +3,22 @@
 package computes for them, so the Rust core (tests/feature_vectors.rs) and training
 (tests/test_feature_vectors.py) check themselves against one file.
 
-Run from training/: python -m temc_train.feature_vectors. Inputs are float32 values,
+Run from training/: python -m temc_train.vectors.feature_vectors. Inputs are float32 values,
 written exactly; non-finite values as "nan", "inf", "-inf".
 """
 
+import argparse
 import json
 import math
 import pathlib
 
 import numpy as np
 
-from temc_train import color
-from temc_train.data import auto_input_scale
-from temc_train.recon_vectors import _num  # NaN/Inf as JSON strings, as the Rust side reads them
+from .. import color
+from ..data import auto_input_scale
+from .recon_vectors import _num  # NaN/Inf as JSON strings, as the Rust side reads them
 
-OUT = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "feature_vectors.json"
+OUT = pathlib.Path(__file__).resolve().parents[3] / "tests" / "data" / "feature_vectors.json"
 # Exposure: the core rounds its scale to float32 (6e-8 relative), this package keeps float64.
 EXPOSURE_TOLERANCE = 1e-6
 # Features: float32 results of the same float64 arithmetic, up to one rounding apart.
@@ -99,7 +100,7 @@ def vectors() -> dict:
         depth.append({"name": name, "in": _flat(d), "scale": None if s is None else s,
                       "out": _flat(color.depth(d, s))})
     return {
-        "comment": "Written by training/temc_train/feature_vectors.py; read by "
+        "comment": "Written by training/temc_train/vectors/feature_vectors.py; read by "
                    "training/tests/test_feature_vectors.py and tests/feature_vectors.rs. "
                    "Rules: docs/contracts.md section 1, steps 3 and 7.",
         "auto_exposure_key": color.AUTO_EXPOSURE_KEY,
@@ -109,7 +110,9 @@ def vectors() -> dict:
     }
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.parse_args(argv)  # --help; no options
     doc = vectors()
     OUT.write_text(json.dumps(doc, indent=1) + "\n")
     print(f"wrote {OUT} ({OUT.stat().st_size} bytes)")

@@ -1,0 +1,169 @@
+"""checkpoint.Checkpoint, the one reader and writer of runs: the round trip of each form,
+and older runs (synthetic ones in the forms the committed runs had) read upgraded, build,
+resume and ship."""
+
+import glob
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from temc_train.checkpoint import OLD_HPARAMS, Checkpoint, load_checkpoint
+from temc_train.drivers import budget, ship, train
+from temc_train.models import RECON_DEFAULTS, build
+from test_data_train import dataset  # noqa: F401  (the fixture)
+
+RUNS = os.path.join(os.path.dirname(__file__), "..", "runs")
+TRAINING_KEYS = ["model", "opt", "state", "arch", "width", "recon", "dataset"]
+
+
+def tiny(levels=1, guide=False):
+    torch.manual_seed(0)
+    return build("temc2", 0.0625, levels, 5, "both", guide)
+
+
+def adam_state(model) -> dict:
+    opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+    sum(p.sum() for p in model.parameters()).backward()
+    opt.step()
+    return train.compact_optimizer_state(opt.state_dict())
+
+
+def outputs(model):
+    xs = [torch.rand(1, c, 32, 32, generator=torch.Generator().manual_seed(3)) for c in (2, 1, 7)]
+    with torch.no_grad():
+        return model.eval()(*xs)
+
+
+def test_a_training_checkpoint_round_trips(tmp_path):
+    model = tiny()
+    recon = dict(RECON_DEFAULTS, levels=1, guide=False)
+    state = {"step": 7, "train_s": 12.5, "gpu_seconds": 0.0,
+             "rng": np.random.default_rng(0).bit_generator.state, "hparams": {"lr": 1e-4}}
+    ck = Checkpoint(model=train.cpu_state(model.state_dict()), opt=adam_state(model), state=state,
+                    arch="temc2", width=0.0625, recon=recon, dataset="tiny")
+    path = str(tmp_path / "checkpoint.pt")
+    ck.write(path)
+    raw = torch.load(path, weights_only=True)
+    assert list(raw) == TRAINING_KEYS  # the file's form is drivers/train.py's, unchanged
+    back = Checkpoint.read(path)
+    assert back.training and back.steps == 7
+    assert (back.arch, back.width, back.recon, back.dataset, back.state) == ("temc2", 0.0625, recon, "tiny", state)
+    assert back.opt["state"].keys() == ck.opt["state"].keys()
+    assert all(torch.equal(back.model[k], v) for k, v in ck.model.items())
+    assert back.info() == {"dataset": "tiny", "train_steps": 7}
+    assert back.recipe() == {**OLD_HPARAMS, "lr": 1e-4}
+    built, arch, width = back.build()
+    for a, b in zip(outputs(built), outputs(model)):
+        assert torch.equal(a, b)
+
+
+def test_a_final_model_round_trips(tmp_path):
+    model = tiny()
+    summary = {"train_steps": 3, "train_seconds": 1.0, "gpu_seconds": 0.0, "params": (10, 2)}
+    path = str(tmp_path / "model.pt")
+    Checkpoint(model=model.state_dict(), arch="temc2", width=0.0625, recon=dict(RECON_DEFAULTS, levels=1),
+               dataset="tiny", summary=summary).write(path)
+    raw = torch.load(path, weights_only=True)
+    assert list(raw) == ["model", "arch", "width", "recon", "dataset", "train_steps", "train_seconds",
+                         "gpu_seconds", "params"]
+    back = Checkpoint.read(path)
+    assert not back.training and back.steps == 3 and back.summary["params"] == (10, 2)
+    _, arch, width, info = load_checkpoint(path)
+    assert (arch, width, info) == ("temc2", 0.0625, {"dataset": "tiny", "train_steps": 3})
+
+
+def test_a_bare_state_dict_needs_arch_and_width(tmp_path):
+    path = str(tmp_path / "bare.pt")
+    torch.save(tiny(levels=RECON_DEFAULTS["levels"]).state_dict(), path)
+    ck = Checkpoint.read(path)
+    assert ck.bare and ck.recon == RECON_DEFAULTS and ck.info() == {}
+    with pytest.raises(ValueError, match="needs --arch"):
+        ck.build()
+    assert ck.build("temc2", 0.0625)[1:] == ("temc2", 0.0625)
+    with pytest.raises(ValueError, match="has arch 'temc2', not 'ae'"):
+        Checkpoint(model={}, arch="temc2", width=0.0625).build("ae", 0.0625)
+
+
+def old_checkpoint(model, recon=True) -> dict:
+    """The oldest committed form (21aae6e): no data set name, no GPU seconds, no hparams,
+    "recon" without guide or fixed_range (or, older still, none)."""
+    ck = {"model": model.state_dict(), "opt": adam_state(model),
+          "state": {"step": 41, "train_s": 3600.0, "rng": np.random.default_rng(5).bit_generator.state},
+          "arch": "temc2", "width": 0.0625}
+    if recon:
+        ck["recon"] = {"levels": 1, "kernel": 5, "split": "both", "demodulate": False, "eps": 0.01}
+    return ck
+
+
+@pytest.mark.parametrize("recon", [True, False], ids=["recon-without-guide", "no-recon"])
+def test_an_old_checkpoint_reads_upgraded(tmp_path, recon):
+    model = tiny(levels=1 if recon else RECON_DEFAULTS["levels"])
+    path = str(tmp_path / "checkpoint.pt")
+    torch.save(old_checkpoint(model, recon), path)
+    ck = Checkpoint.read(path)
+    assert ck.training and ck.dataset is None and ck.state["gpu_seconds"] == 0.0
+    assert ck.recon == dict(RECON_DEFAULTS, levels=1 if recon else RECON_DEFAULTS["levels"])
+    assert ck.recipe() == OLD_HPARAMS and "hparams" not in ck.state  # read, not stored
+    assert ck.info() == {"train_steps": 41}
+    built, *_ = ck.build()
+    for a, b in zip(outputs(built), outputs(model)):
+        assert torch.equal(a, b)
+    assert budget.hours_for(str(tmp_path), 10.0, 0.5) == pytest.approx(1.5)
+    facts = ship.checkpoint_facts(path, built, str(tmp_path / "some-data"))
+    assert (facts["dataset"], facts["gpu_seconds"], facts["hparams"]) == ("some-data", 0.0, OLD_HPARAMS)
+    # Written back, it is in the current form.
+    ck.write(path)
+    raw = torch.load(path, weights_only=True)
+    assert list(raw) == TRAINING_KEYS and raw["recon"] == ck.recon and raw["state"]["gpu_seconds"] == 0.0
+
+
+def test_an_old_checkpoint_resumes(dataset, tmp_path):  # noqa: F811
+    run = tmp_path / "run"
+    args = ["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--levels", "1", "--run", str(run),
+            "--crop", "32", "--batch", "2", "--val-minutes", "0", "--threads", "1"]
+    train.main(args + ["--max-steps", "1"])
+    path = str(run / "checkpoint.pt")
+    raw = torch.load(path, weights_only=True)
+    old = {k: raw[k] for k in ("model", "opt", "arch", "width")}
+    old["state"] = {k: raw["state"][k] for k in ("step", "train_s", "rng")}
+    old["recon"] = {k: raw["recon"][k] for k in ("levels", "kernel", "split", "demodulate", "eps")}
+    torch.save(old, path)
+    train.main(args + ["--max-steps", "2"])
+    raw = torch.load(path, weights_only=True)
+    assert list(raw) == TRAINING_KEYS and raw["state"]["step"] == 2
+    assert raw["recon"] == dict(RECON_DEFAULTS, levels=1)
+    assert raw["dataset"] == os.path.basename(dataset) and raw["state"]["gpu_seconds"] == 0.0
+
+
+def test_a_checkpoint_never_holds_non_finite_weights(tmp_path):
+    model = tiny()
+    path = str(tmp_path / "checkpoint.pt")
+    good = Checkpoint(model=model.state_dict(), opt=None, state={"step": 1}, arch="temc2", width=0.0625)
+    good.write(path)
+    bad = {k: v.clone() for k, v in model.state_dict().items()}
+    next(v for v in bad.values() if v.is_floating_point())[0] = float("nan")
+    with pytest.raises(SystemExit, match="non-finite"):
+        Checkpoint(model=bad, opt=None, state={"step": 2}, arch="temc2", width=0.0625).write(path)
+    assert torch.load(path, weights_only=True)["state"]["step"] == 1  # the last one is kept
+
+
+def test_a_large_checkpoint_drops_the_moments(tmp_path):
+    model = tiny()
+    path = str(tmp_path / "checkpoint.pt")
+    ck = Checkpoint(model=model.state_dict(), opt=adam_state(model), state={"step": 1},
+                    arch="temc2", width=0.0625)
+    ck.write(path, limit=10**9)
+    assert torch.load(path, weights_only=True)["opt"] is not None
+    ck.write(path, limit=1000)
+    assert torch.load(path, weights_only=True)["opt"] is None and ck.opt is not None
+
+
+@pytest.mark.parametrize("run", sorted(glob.glob(os.path.join(RUNS, "*", "checkpoint.pt"))),
+                         ids=lambda p: os.path.basename(os.path.dirname(p)))
+def test_committed_runs_read_as_training_checkpoints(run):
+    ck = Checkpoint.read(run)
+    assert ck.training and ck.steps > 0 and ck.opt is not None
+    assert set(ck.recon) == set(RECON_DEFAULTS) and ck.info()["train_steps"] == ck.steps
+    assert list(ck.to_dict()) == TRAINING_KEYS
