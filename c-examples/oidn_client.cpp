@@ -2,7 +2,8 @@
 // denoiser, oidnDenoise), through oidn.hpp renamed: #include <OpenImageDenoise/oidn.hpp>
 // became "temc.hpp", oidn:: became temc::, OIDN_ became TEMC_. Nothing else is changed:
 // device buffers, an "RT" filter, aux prefiltering, an error callback, a progress monitor,
-// asynchronous execution and sync.
+// asynchronous execution and sync (a pass queued end to end, checked against the blocking
+// one).
 //   oidn_client            (exit status 0 when the pass ran without errors)
 #include "temc.hpp"
 
@@ -72,6 +73,33 @@ double relMSE(const float* x, const std::vector<float>& ref) {
     sum += d * d / (double(ref[i]) * ref[i] + 0.01);
   }
   return sum / double(ref.size());
+}
+
+// The beauty pass again, queued end to end: the colour written into a fresh buffer, the
+// filter executed and the output read back, all Async, and the filter released before the
+// one sync. The device runs them in order, so the result equals the blocking pass's.
+bool queuedPassMatches(temc::DeviceRef& device, int w, int h, const std::vector<float>& color,
+                       temc::BufferRef& albedoBuf, temc::BufferRef& normalBuf,
+                       const std::vector<float>& expected) {
+  const size_t bytes = color.size() * sizeof(float);
+  temc::BufferRef colorIn = device.newBuffer(bytes);
+  temc::BufferRef out = device.newBuffer(bytes);
+  temc::FilterRef filter = device.newFilter("RT");
+  filter.setImage("color", colorIn, temc::Format::Float3, w, h);
+  filter.setImage("albedo", albedoBuf, temc::Format::Float3, w, h);
+  filter.setImage("normal", normalBuf, temc::Format::Float3, w, h);
+  filter.setImage("output", out, temc::Format::Float3, w, h);
+  filter.set("hdr", true);
+  filter.set("cleanAux", true);
+  filter.set("quality", temc::Quality::Balanced);
+  filter.commit();
+  std::vector<float> readBack(color.size(), -1.0f);
+  colorIn.writeAsync(0, bytes, color.data());
+  filter.executeAsync();
+  out.readAsync(0, bytes, readBack.data());
+  filter.release();  // the queued execution holds the filter until it has run
+  device.sync();
+  return device.getError() == temc::Error::None && readBack == expected;
 }
 
 }  // namespace
@@ -153,6 +181,10 @@ int main() {
       std::fprintf(stderr, "bad output value at %zu\n", i);
       return 1;
     }
+  if (!queuedPassMatches(device, width, height, color, albedoBuf, normalBuf, output)) {
+    std::fprintf(stderr, "the queued pass differs from the blocking one\n");
+    return 1;
+  }
   if (progress.calls == 0 || progress.last != 1.0) {
     std::fprintf(stderr, "progress monitor: %d calls, last %g\n", progress.calls, progress.last);
     return 1;

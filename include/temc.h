@@ -48,8 +48,9 @@ typedef uint32_t TEMCDeviceType;
 // Error codes (OIDN's values).
 typedef uint32_t TEMCError;
 
-// Called with each error as it happens: user pointer, code, message (valid during the
-// call). No temc lock is held while it runs, so it may call temc functions.
+// Called with each error as it is reported: user pointer, code, message (valid during
+// the call); an error of queued work at the next sync point, on the thread of that call.
+// No temc lock is held while it runs, so it may call temc functions.
 typedef void (*TEMCErrorFunction)(void *user_ptr, TEMCError code, const char *message);
 
 // A buffer handle.
@@ -74,7 +75,8 @@ typedef TEMCFilterImpl *TEMCFilter;
 typedef uint32_t TEMCFormat;
 
 // Called with the progress in [0, 1]; return false to cancel. It runs while the filter
-// executes: it must not call functions on the same filter.
+// executes (for temcExecuteFilterAsync, on the device's queue thread): it must not call
+// functions on the same filter.
 typedef bool (*TEMCProgressMonitorFunction)(void *user_ptr, double n);
 
 // External semaphore type flags (OIDN 2.5; for the import functions, which the CPU
@@ -333,15 +335,18 @@ TEMC_API TEMCDevice temcNewMetalDevice(const void *_command_queues, int32_t _num
 // Adds a reference to the device.
 TEMC_API void temcRetainDevice(TEMCDevice device);
 
-// Drops a reference; with the last one the handle is dead (filters and buffers made on
-// the device keep what they need of it until they are released too).
+// Drops a reference; with the last one the handle is dead, after the device's queued
+// work (filters and buffers made on the device keep what they need of it until they are
+// released too).
 TEMC_API void temcReleaseDevice(TEMCDevice device);
 
 // Commits the device's parameters (builds its thread pool). Required before filters run.
 TEMC_API void temcCommitDevice(TEMCDevice device);
 
-// Waits for the device's asynchronous operations: they all complete before returning, so
-// this only checks the handle (and, as OIDN, that the device is committed).
+// Waits for the work the `Async` calls queued on the device. The first error of that
+// work (since the last sync point: this, temcExecuteFilter, temcCommitFilter) is
+// reported now, as OIDN reports asynchronous errors. As OIDN, the device must be
+// committed.
 TEMC_API void temcSyncDevice(TEMCDevice device);
 
 // Sets an int (or bool) device parameter: "numThreads" (0 = all cores; more than the
@@ -475,7 +480,8 @@ TEMC_API TEMCStorage temcGetBufferStorage(TEMCBuffer buffer);
 // Returns the buffer's data, host-accessible (NULL for an empty buffer or on error).
 TEMC_API void *temcGetBufferData(TEMCBuffer buffer);
 
-// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
+// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`, after the
+// work queued on the buffer's device.
 //
 // # Safety
 // `dst_host_ptr` must be writable for `byte_size` bytes.
@@ -485,17 +491,19 @@ void temcReadBuffer(TEMCBuffer buffer,
                     uintptr_t byte_size,
                     void *dst_host_ptr);
 
-// temcReadBuffer; complete on return (the CPU device runs everything synchronously).
+// temcReadBuffer, queued on the device: returns at once; the copy is done after
+// temcSyncDevice (or any call that waits for the queue).
 //
 // # Safety
-// As temcReadBuffer.
+// `dst_host_ptr` must stay writable for `byte_size` bytes until the copy is done.
 TEMC_API
 void temcReadBufferAsync(TEMCBuffer buffer,
                          uintptr_t byte_offset,
                          uintptr_t byte_size,
                          void *dst_host_ptr);
 
-// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`.
+// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`, after
+// the work queued on the buffer's device.
 //
 // # Safety
 // `src_host_ptr` must be readable for `byte_size` bytes.
@@ -505,10 +513,11 @@ void temcWriteBuffer(TEMCBuffer buffer,
                      uintptr_t byte_size,
                      const void *src_host_ptr);
 
-// temcWriteBuffer; complete on return.
+// temcWriteBuffer, queued on the device: returns at once; the copy is done after
+// temcSyncDevice (or any call that waits for the queue).
 //
 // # Safety
-// As temcWriteBuffer.
+// `src_host_ptr` must stay readable for `byte_size` bytes until the copy is done.
 TEMC_API
 void temcWriteBufferAsync(TEMCBuffer buffer,
                           uintptr_t byte_offset,
@@ -518,8 +527,8 @@ void temcWriteBufferAsync(TEMCBuffer buffer,
 // Adds a reference to the buffer.
 TEMC_API void temcRetainBuffer(TEMCBuffer buffer);
 
-// Drops a reference; the memory goes with the last one, or later while a filter still
-// has an image of it set.
+// Drops a reference; the memory goes with the last one (after the device's queued work),
+// or later while a filter still has an image of it set.
 TEMC_API void temcReleaseBuffer(TEMCBuffer buffer);
 
 // Imports an external semaphore from a POSIX file descriptor: the CPU device imports
@@ -578,7 +587,8 @@ TEMC_API TEMCFilter temcNewFilter(TEMCDevice device, const char *filter_type);
 TEMC_API void temcRetainFilter(TEMCFilter filter);
 
 // Drops a reference; the filter (with its hold on the device and buffers) goes with the
-// last one, after any execution still running on another thread.
+// last one, after the work queued on its device (as in OIDN) and any execution still
+// running on another thread. Executions still queued hold the filter meanwhile.
 TEMC_API void temcReleaseFilter(TEMCFilter filter);
 
 // Sets an image stored in a buffer (which the filter holds while the image is set). A
@@ -762,14 +772,21 @@ void temcSetFilterProgressMonitorFunction(TEMCFilter filter,
 // input, no output, an unsupported format (fewer than 3 channels), input and output of
 // different channel counts, images of another size than the output, "hdr" with "srgb",
 // aux images without colour (beyond "RT"'s one-image prefilter). A filter whose commit
-// failed stays uncommitted.
+// failed stays uncommitted. As OIDN's, it first waits for the device's queued work and
+// fails with that work's first error, if any (the filter then stays as it was).
 TEMC_API void temcCommitFilter(TEMCFilter filter);
 
-// Runs the filter. On error nothing is written to the output.
+// Runs the filter, after the work queued on its device; returns when it is done. On
+// error nothing is written to the output. As OIDN's, the error reported is the queued
+// work's first, if it failed, else this execution's.
 TEMC_API void temcExecuteFilter(TEMCFilter filter);
 
-// temcExecuteFilter; complete on return (the CPU device runs synchronously), so
-// temcSyncDevice has nothing to wait for.
+// Queues an execution of the filter on its device and returns at once (an uncommitted
+// filter is an error now). The execution runs after the work queued before it, with the
+// images and parameters the filter has now: changing the filter waits for its queued
+// executions, and the execution holds the filter (and its buffers) until it has run, so
+// releasing the filter meanwhile is safe. temcSyncDevice waits for it and reports its
+// error. Shared (caller) memory must stay valid until then.
 TEMC_API void temcExecuteFilterAsync(TEMCFilter filter);
 
 // Executes on a SYCL queue: not possible on the CPU device (TEMC_ERROR_INVALID_OPERATION).

@@ -349,7 +349,7 @@ class FilterRef : public detail::Ref<TEMCFilter> {
 
   void commit() { temcCommitFilter(h); }
   void execute() { temcExecuteFilter(h); }
-  /// Complete on return on temc's CPU device.
+  /// Queued on the device; returns at once (DeviceRef::sync waits for it).
   void executeAsync() { temcExecuteFilterAsync(h); }
 };
 

@@ -3,8 +3,9 @@
 //! A client written against `oidn.h` (or `oidn.hpp`, see `include/temc.hpp`) builds against
 //! `include/temc.h` after renaming oidn/OIDN to temc/TEMC, with OIDN's semantics on a
 //! CPU-only device: buffers live in host memory (shared buffers wrap the caller's), the
-//! asynchronous calls complete before they return, there is one physical device (the CPU),
-//! and the GPU device types give TEMC_ERROR_UNSUPPORTED_HARDWARE. Filter types are OIDN's
+//! asynchronous calls queue their work on the device's queue (`queue`: one worker thread
+//! per device, in order) and return, there is one physical device (the CPU), and the GPU
+//! device types give TEMC_ERROR_UNSUPPORTED_HARDWARE. Filter types are OIDN's
 //! "RT" and "RTLightmap" (TEMC-2) and temc's "TEMC2", "TEMC1", "DEMC", "AE".
 //!
 //! Soundness: handles are generation-tagged ids looked up in a registry (`registry`), so a
@@ -18,11 +19,12 @@
 
 mod filter_state;
 mod objects;
+mod queue;
 mod registry;
 
 use std::ffi::{c_char, c_void, CString};
 use std::sync::atomic::Ordering;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 use crate::image::{Format, Layout};
 use filter_state::FilterState;
@@ -44,10 +46,19 @@ fn retain_in<T>(registry: &Registry<T>, handle: usize, kind: &str) -> Result<(),
 }
 
 /// Release for every handle kind. The last reference's object is dropped here, outside
-/// the registry's lock (its destructor may release other objects).
-fn release_in<T>(registry: &Registry<T>, handle: usize, kind: &str) -> Result<(), Failure> {
+/// the registry's lock (its destructor may release other objects), after the work queued
+/// on its device, as OIDN waits for it (memory shared with the object may then be freed).
+fn release_in<T>(
+    registry: &Registry<T>,
+    handle: usize,
+    kind: &str,
+    device: impl Fn(&T) -> &DeviceObj,
+) -> Result<(), Failure> {
     match registry.release(handle) {
         Some(last) => {
+            if let Some(object) = &last {
+                device(object).queue.wait_idle();
+            }
             drop(last);
             Ok(())
         }
@@ -224,13 +235,15 @@ pub const TEMC_QUALITY_BALANCED: TEMCQuality = 5;
 /// trailed it and was retired (training/runs/RETIRED.md).
 pub const TEMC_QUALITY_HIGH: TEMCQuality = 6;
 
-/// Called with each error as it happens: user pointer, code, message (valid during the
-/// call). No temc lock is held while it runs, so it may call temc functions.
+/// Called with each error as it is reported: user pointer, code, message (valid during
+/// the call); an error of queued work at the next sync point, on the thread of that call.
+/// No temc lock is held while it runs, so it may call temc functions.
 pub type TEMCErrorFunction =
     Option<unsafe extern "C" fn(user_ptr: *mut c_void, code: TEMCError, message: *const c_char)>;
 
 /// Called with the progress in [0, 1]; return false to cancel. It runs while the filter
-/// executes: it must not call functions on the same filter.
+/// executes (for temcExecuteFilterAsync, on the device's queue thread): it must not call
+/// functions on the same filter.
 pub type TEMCProgressMonitorFunction =
     Option<unsafe extern "C" fn(user_ptr: *mut c_void, n: f64) -> bool>;
 
@@ -543,11 +556,12 @@ pub extern "C" fn temcRetainDevice(device: TEMCDevice) {
     guarded((), |_| retain_in(&DEVICES, device.addr(), "device"))
 }
 
-/// Drops a reference; with the last one the handle is dead (filters and buffers made on
-/// the device keep what they need of it until they are released too).
+/// Drops a reference; with the last one the handle is dead, after the device's queued
+/// work (filters and buffers made on the device keep what they need of it until they are
+/// released too).
 #[no_mangle]
 pub extern "C" fn temcReleaseDevice(device: TEMCDevice) {
-    guarded((), |_| release_in(&DEVICES, device.addr(), "device"))
+    guarded((), |_| release_in(&DEVICES, device.addr(), "device", |d| d))
 }
 
 /// Commits the device's parameters (builds its thread pool). Required before filters run.
@@ -556,11 +570,13 @@ pub extern "C" fn temcCommitDevice(device: TEMCDevice) {
     guarded((), |c| Ok(c.device(device)?.device.commit()?))
 }
 
-/// Waits for the device's asynchronous operations: they all complete before returning, so
-/// this only checks the handle (and, as OIDN, that the device is committed).
+/// Waits for the work the `Async` calls queued on the device. The first error of that
+/// work (since the last sync point: this, temcExecuteFilter, temcCommitFilter) is
+/// reported now, as OIDN reports asynchronous errors. As OIDN, the device must be
+/// committed.
 #[no_mangle]
 pub extern "C" fn temcSyncDevice(device: TEMCDevice) {
-    guarded((), |c| committed_device(c, device).map(|_| ()))
+    guarded((), |c| committed_device(c, device)?.sync())
 }
 
 /// The device of a call OIDN allows only on a committed device (sync, new buffers, new
@@ -903,7 +919,94 @@ pub extern "C" fn temcGetBufferData(buffer: TEMCBuffer) -> *mut c_void {
     })
 }
 
-/// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`.
+/// A buffer copy to or from host memory, checked as OIDN checks it before running or
+/// queuing it. It holds the buffer, so a queued copy outlives the buffer's release.
+struct BufferCopy {
+    buffer: Arc<BufferObj>,
+    offset: usize,
+    size: usize,
+    host: SendPtr,
+    /// Buffer to host (a read), else host to buffer.
+    read: bool,
+}
+
+impl BufferCopy {
+    fn new(
+        buffer: Arc<BufferObj>,
+        offset: usize,
+        size: usize,
+        host: *mut c_void,
+        read: bool,
+    ) -> Outcome<Self> {
+        buffer.check_range(offset, size)?;
+        if size > 0 && host.is_null() {
+            return Err(Failure::invalid(if read {
+                "read buffer: NULL destination"
+            } else {
+                "write buffer: NULL source"
+            }));
+        }
+        Ok(Self {
+            buffer,
+            offset,
+            size,
+            host: SendPtr(host),
+            read,
+        })
+    }
+
+    /// # Safety
+    /// The host memory must be valid for `size` bytes (readable, or writable for a read).
+    unsafe fn run(&self) {
+        if self.size == 0 {
+            return;
+        }
+        // SAFETY: `new` checked that the range lies inside the buffer; the caller's
+        // contract covers the host side. `copy` allows the two to overlap.
+        unsafe {
+            let inside = self.buffer.ptr.add(self.offset);
+            let host = self.host.0 as *mut u8;
+            if self.read {
+                std::ptr::copy(inside, host, self.size);
+            } else {
+                std::ptr::copy(host as *const u8, inside, self.size);
+            }
+        }
+    }
+}
+
+/// The four buffer copy calls: a blocking copy runs after the device's queued work (as
+/// OIDN's), an `Async` one is queued after it.
+///
+/// # Safety
+/// As temcReadBuffer / temcWriteBuffer; for a queued copy, until it has run (temcSyncDevice).
+unsafe fn buffer_copy(
+    buffer: TEMCBuffer,
+    offset: usize,
+    size: usize,
+    host: *mut c_void,
+    read: bool,
+    queued: bool,
+) {
+    guarded((), |c| {
+        let b = c.buffer(buffer)?;
+        let copy = BufferCopy::new(b.clone(), offset, size, host, read)?;
+        if queued {
+            return b.device.queue.push(Box::new(move || {
+                // SAFETY: the caller keeps the host memory valid until the copy has run.
+                unsafe { copy.run() };
+                Ok(())
+            }));
+        }
+        b.device.queue.wait_idle();
+        // SAFETY: the caller's contract.
+        unsafe { copy.run() };
+        Ok(())
+    })
+}
+
+/// Copies `byte_size` bytes at `byte_offset` of the buffer to `dst_host_ptr`, after the
+/// work queued on the buffer's device.
 ///
 /// # Safety
 /// `dst_host_ptr` must be writable for `byte_size` bytes.
@@ -914,26 +1017,15 @@ pub unsafe extern "C" fn temcReadBuffer(
     byte_size: usize,
     dst_host_ptr: *mut c_void,
 ) {
-    guarded((), |c| {
-        let b = c.buffer(buffer)?;
-        b.check_range(byte_offset, byte_size)?;
-        if byte_size == 0 {
-            return Ok(());
-        }
-        if dst_host_ptr.is_null() {
-            return Err(Failure::invalid("read buffer: NULL destination"));
-        }
-        // SAFETY: the range is inside the buffer; the caller's contract covers the
-        // destination. `copy` allows the two to overlap.
-        unsafe { std::ptr::copy(b.ptr.add(byte_offset), dst_host_ptr as *mut u8, byte_size) };
-        Ok(())
-    })
+    // SAFETY: forwarded contract.
+    unsafe { buffer_copy(buffer, byte_offset, byte_size, dst_host_ptr, true, false) }
 }
 
-/// temcReadBuffer; complete on return (the CPU device runs everything synchronously).
+/// temcReadBuffer, queued on the device: returns at once; the copy is done after
+/// temcSyncDevice (or any call that waits for the queue).
 ///
 /// # Safety
-/// As temcReadBuffer.
+/// `dst_host_ptr` must stay writable for `byte_size` bytes until the copy is done.
 #[no_mangle]
 pub unsafe extern "C" fn temcReadBufferAsync(
     buffer: TEMCBuffer,
@@ -942,10 +1034,11 @@ pub unsafe extern "C" fn temcReadBufferAsync(
     dst_host_ptr: *mut c_void,
 ) {
     // SAFETY: forwarded contract.
-    unsafe { temcReadBuffer(buffer, byte_offset, byte_size, dst_host_ptr) }
+    unsafe { buffer_copy(buffer, byte_offset, byte_size, dst_host_ptr, true, true) }
 }
 
-/// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`.
+/// Copies `byte_size` bytes from `src_host_ptr` into the buffer at `byte_offset`, after
+/// the work queued on the buffer's device.
 ///
 /// # Safety
 /// `src_host_ptr` must be readable for `byte_size` bytes.
@@ -956,25 +1049,16 @@ pub unsafe extern "C" fn temcWriteBuffer(
     byte_size: usize,
     src_host_ptr: *const c_void,
 ) {
-    guarded((), |c| {
-        let b = c.buffer(buffer)?;
-        b.check_range(byte_offset, byte_size)?;
-        if byte_size == 0 {
-            return Ok(());
-        }
-        if src_host_ptr.is_null() {
-            return Err(Failure::invalid("write buffer: NULL source"));
-        }
-        // SAFETY: as in temcReadBuffer, reversed.
-        unsafe { std::ptr::copy(src_host_ptr as *const u8, b.ptr.add(byte_offset), byte_size) };
-        Ok(())
-    })
+    let src = src_host_ptr as *mut c_void;
+    // SAFETY: forwarded contract (a write only reads the host memory).
+    unsafe { buffer_copy(buffer, byte_offset, byte_size, src, false, false) }
 }
 
-/// temcWriteBuffer; complete on return.
+/// temcWriteBuffer, queued on the device: returns at once; the copy is done after
+/// temcSyncDevice (or any call that waits for the queue).
 ///
 /// # Safety
-/// As temcWriteBuffer.
+/// `src_host_ptr` must stay readable for `byte_size` bytes until the copy is done.
 #[no_mangle]
 pub unsafe extern "C" fn temcWriteBufferAsync(
     buffer: TEMCBuffer,
@@ -982,8 +1066,9 @@ pub unsafe extern "C" fn temcWriteBufferAsync(
     byte_size: usize,
     src_host_ptr: *const c_void,
 ) {
-    // SAFETY: forwarded contract.
-    unsafe { temcWriteBuffer(buffer, byte_offset, byte_size, src_host_ptr) }
+    let src = src_host_ptr as *mut c_void;
+    // SAFETY: forwarded contract (a write only reads the host memory).
+    unsafe { buffer_copy(buffer, byte_offset, byte_size, src, false, true) }
 }
 
 /// Adds a reference to the buffer.
@@ -992,11 +1077,13 @@ pub extern "C" fn temcRetainBuffer(buffer: TEMCBuffer) {
     guarded((), |_| retain_in(&BUFFERS, buffer.addr(), "buffer"))
 }
 
-/// Drops a reference; the memory goes with the last one, or later while a filter still
-/// has an image of it set.
+/// Drops a reference; the memory goes with the last one (after the device's queued work),
+/// or later while a filter still has an image of it set.
 #[no_mangle]
 pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
-    guarded((), |_| release_in(&BUFFERS, buffer.addr(), "buffer"))
+    guarded((), |_| {
+        release_in(&BUFFERS, buffer.addr(), "buffer", |b| &*b.device)
+    })
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1139,10 +1226,7 @@ pub unsafe extern "C" fn temcNewFilter(
         // SAFETY: the caller's contract.
         let state = FilterState::new(&d, unsafe { name_arg(filter_type) }?)?;
         FILTERS
-            .insert(FilterObj {
-                device: d,
-                state: Mutex::new(state),
-            })
+            .insert(FilterObj::new(d, state))
             .map(handle)
             .ok_or_else(|| Failure::new(TEMC_ERROR_OUT_OF_MEMORY, "too many filters"))
     })
@@ -1155,10 +1239,13 @@ pub extern "C" fn temcRetainFilter(filter: TEMCFilter) {
 }
 
 /// Drops a reference; the filter (with its hold on the device and buffers) goes with the
-/// last one, after any execution still running on another thread.
+/// last one, after the work queued on its device (as in OIDN) and any execution still
+/// running on another thread. Executions still queued hold the filter meanwhile.
 #[no_mangle]
 pub extern "C" fn temcReleaseFilter(filter: TEMCFilter) {
-    guarded((), |_| release_in(&FILTERS, filter.addr(), "filter"))
+    guarded((), |_| {
+        release_in(&FILTERS, filter.addr(), "filter", |f| &*f.device)
+    })
 }
 
 fn layout(
@@ -1219,7 +1306,7 @@ pub unsafe extern "C" fn temcSetFilterImage(
             pixel_byte_stride,
             row_byte_stride,
         )?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         st.check_buffer_image(name, &l, &b)?;
         let ptr = b.ptr;
         // SAFETY: the layout fits the buffer, and the state holds the buffer while the
@@ -1268,7 +1355,7 @@ pub unsafe extern "C" fn temcSetSharedFilterImage(
             row_byte_stride,
         )?;
         // SAFETY: the caller's contract.
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         // SAFETY: the caller's contract.
         unsafe { st.set_image(&f.device, name, dev_ptr as *mut u8, l, None) }
     })
@@ -1284,7 +1371,7 @@ pub unsafe extern "C" fn temcUnsetFilterImage(filter: TEMCFilter, name: *const c
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         st.unset_image(&f.device, name)
     })
 }
@@ -1316,7 +1403,7 @@ pub unsafe extern "C" fn temcSetSharedFilterData(
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         // SAFETY: the caller's contract.
         unsafe { st.set_data(&f.device, name_arg(name)?, host_ptr as *const u8, byte_size) }
     })
@@ -1331,7 +1418,7 @@ pub unsafe extern "C" fn temcUpdateFilterData(filter: TEMCFilter, name: *const c
     guarded((), |c| {
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         // SAFETY: the caller's contract.
         unsafe { st.update_data(&f.device, name_arg(name)?) }
     })
@@ -1347,7 +1434,7 @@ pub unsafe extern "C" fn temcUnsetFilterData(filter: TEMCFilter, name: *const c_
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         st.unset_data(&f.device, name)
     })
 }
@@ -1375,7 +1462,7 @@ pub unsafe extern "C" fn temcSetFilterInt(filter: TEMCFilter, name: *const c_cha
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         st.set_int(&f.device, name, value)
     })
 }
@@ -1428,7 +1515,7 @@ pub unsafe extern "C" fn temcSetFilterFloat(filter: TEMCFilter, name: *const c_c
         let f = c.filter(filter)?;
         // SAFETY: the caller's contract.
         let name = unsafe { name_arg(name) }?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         st.set_float(&f.device, name, value)
     })
 }
@@ -1508,9 +1595,11 @@ pub unsafe extern "C" fn temcGetFilter1f(filter: TEMCFilter, name: *const c_char
     unsafe { temcGetFilterFloat(filter, name) }
 }
 
+/// A C caller's pointer used on temc's threads.
 struct SendPtr(*mut c_void);
-// SAFETY: the C caller owns the user pointer and promises it may be used from the threads
-// temc runs on, as OIDN requires of its progress monitors.
+// SAFETY: the C caller owns the pointer and promises it may be used from the threads temc
+// runs on: a progress monitor's user pointer (as OIDN requires of its monitors), the host
+// memory of a queued buffer copy (valid until the copy has run, as OIDN requires).
 unsafe impl Send for SendPtr {}
 
 /// Sets the progress monitor (NULL removes it); returning false from it cancels execution
@@ -1527,7 +1616,7 @@ pub unsafe extern "C" fn temcSetFilterProgressMonitorFunction(
 ) {
     guarded((), |c| {
         let f = c.filter(filter)?;
-        let mut st = f.lock();
+        let mut st = f.lock_idle();
         match func {
             None => st.core().unset_progress_monitor(),
             Some(cb) => {
@@ -1548,23 +1637,40 @@ pub unsafe extern "C" fn temcSetFilterProgressMonitorFunction(
 /// input, no output, an unsupported format (fewer than 3 channels), input and output of
 /// different channel counts, images of another size than the output, "hdr" with "srgb",
 /// aux images without colour (beyond "RT"'s one-image prefilter). A filter whose commit
-/// failed stays uncommitted.
+/// failed stays uncommitted. As OIDN's, it first waits for the device's queued work and
+/// fails with that work's first error, if any (the filter then stays as it was).
 #[no_mangle]
 pub extern "C" fn temcCommitFilter(filter: TEMCFilter) {
-    guarded((), |c| c.filter(filter)?.lock().commit())
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        f.device.sync()?;
+        let mut state = f.lock_idle();
+        state.commit()
+    })
 }
 
-/// Runs the filter. On error nothing is written to the output.
+/// Runs the filter, after the work queued on its device; returns when it is done. On
+/// error nothing is written to the output. As OIDN's, the error reported is the queued
+/// work's first, if it failed, else this execution's.
 #[no_mangle]
 pub extern "C" fn temcExecuteFilter(filter: TEMCFilter) {
-    guarded((), |c| c.filter(filter)?.lock().execute())
+    guarded((), |c| {
+        let f = c.filter(filter)?;
+        let queued = f.device.sync();
+        let own = f.lock_idle().execute();
+        queued.and(own)
+    })
 }
 
-/// temcExecuteFilter; complete on return (the CPU device runs synchronously), so
-/// temcSyncDevice has nothing to wait for.
+/// Queues an execution of the filter on its device and returns at once (an uncommitted
+/// filter is an error now). The execution runs after the work queued before it, with the
+/// images and parameters the filter has now: changing the filter waits for its queued
+/// executions, and the execution holds the filter (and its buffers) until it has run, so
+/// releasing the filter meanwhile is safe. temcSyncDevice waits for it and reports its
+/// error. Shared (caller) memory must stay valid until then.
 #[no_mangle]
 pub extern "C" fn temcExecuteFilterAsync(filter: TEMCFilter) {
-    temcExecuteFilter(filter)
+    guarded((), |c| c.filter(filter)?.execute_async())
 }
 
 /// Executes on a SYCL queue: not possible on the CPU device (TEMC_ERROR_INVALID_OPERATION).

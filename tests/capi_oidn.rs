@@ -941,3 +941,229 @@ fn empty_images_and_a_zero_memory_budget_follow_oidn() {
     temcReleaseFilter(f);
     temcReleaseDevice(d);
 }
+
+// ---------------------------------------------------------------------------------------
+// The device queue: the Async calls queue their work and return; sync points wait for it
+// and report its first error, as OIDN's. The tests prove order, not timing: a gate held
+// by the test shows that an execution is still queued when its call has returned.
+
+/// A progress monitor that holds every execution until the test opens it (or a minute
+/// passes, so a synchronous implementation fails the test instead of hanging it).
+#[derive(Default)]
+struct Gate {
+    open: std::sync::Mutex<bool>,
+    opened: std::sync::Condvar,
+    /// Progress calls that have returned.
+    passed: AtomicUsize,
+    /// Whether the monitor lets the execution go on (false: cancel it).
+    go_on: bool,
+}
+
+impl Gate {
+    fn release(&self) {
+        *self.open.lock().unwrap() = true;
+        self.opened.notify_all();
+    }
+}
+
+unsafe extern "C" fn gated_progress(user: *mut c_void, _n: f64) -> bool {
+    let gate = unsafe { &*(user as *const Gate) };
+    let open = gate.open.lock().unwrap();
+    let timeout = std::time::Duration::from_secs(60);
+    drop(
+        gate.opened
+            .wait_timeout_while(open, timeout, |o| !*o)
+            .unwrap(),
+    );
+    gate.passed.fetch_add(1, Ordering::SeqCst);
+    gate.go_on
+}
+
+/// An "RT" HDR filter denoising `w` x `h` images of buffer `color` into buffer `output`.
+fn buffer_filter(
+    d: TEMCDevice,
+    color: TEMCBuffer,
+    output: TEMCBuffer,
+    w: usize,
+    h: usize,
+) -> TEMCFilter {
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    for (name, b) in [("color", color), ("output", output)] {
+        unsafe { temcSetFilterImage(f, c(name).as_ptr(), b, TEMC_FORMAT_FLOAT3, w, h, 0, 0, 0) };
+    }
+    seti(f, "hdr", 1);
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    temcCommitFilter(f);
+    f
+}
+
+#[test]
+fn async_calls_queue_their_work_in_order() {
+    let d = device();
+    let (w, h) = (40, 24);
+    let bytes = w * h * 3 * 4;
+    let color = image(w, h);
+    let (cb, ob) = (temcNewBuffer(d, bytes), temcNewBuffer(d, bytes));
+    let f = buffer_filter(d, cb, ob, w, h);
+    let gate = Gate {
+        go_on: true,
+        ..Gate::default()
+    };
+    let user = &gate as *const Gate as *mut c_void;
+    unsafe { temcSetFilterProgressMonitorFunction(f, Some(gated_progress), user) };
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+
+    // Write the input, denoise it, read the output back: queued, in this order. The
+    // buffers are still zero when the calls return (the copy waits behind nothing, but
+    // the execution waits at the gate, and the read behind it).
+    let mut out = vec![-1f32; w * h * 3];
+    unsafe {
+        temcWriteBufferAsync(cb, 0, bytes, color.as_ptr() as *const c_void);
+        temcExecuteFilterAsync(f);
+        temcReadBufferAsync(ob, 0, bytes, out.as_mut_ptr() as *mut c_void);
+    }
+    let passed_on_return = gate.passed.load(Ordering::SeqCst);
+    gate.release();
+    temcSyncDevice(d);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    assert_eq!(
+        passed_on_return, 0,
+        "temcExecuteFilterAsync returned only after its execution had got past the gate"
+    );
+    assert!(gate.passed.load(Ordering::SeqCst) > 0);
+
+    // The same denoise, blocking, from a copy of the input: the queued one equals it.
+    let (cb2, ob2) = (temcNewBuffer(d, bytes), temcNewBuffer(d, bytes));
+    unsafe { temcWriteBuffer(cb2, 0, bytes, color.as_ptr() as *const c_void) };
+    let g = buffer_filter(d, cb2, ob2, w, h);
+    temcExecuteFilter(g);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    let mut expected = vec![0f32; w * h * 3];
+    unsafe { temcReadBuffer(ob2, 0, bytes, expected.as_mut_ptr() as *mut c_void) };
+    assert!(expected.iter().any(|&v| v > 0.0));
+    assert_eq!(
+        out, expected,
+        "write, execute and read ran in their queued order"
+    );
+    for b in [cb, ob, cb2, ob2] {
+        temcReleaseBuffer(b);
+    }
+    temcReleaseFilter(f);
+    temcReleaseFilter(g);
+    temcReleaseDevice(d);
+}
+
+static ASYNC_ERRORS: std::sync::Mutex<Vec<TEMCError>> = std::sync::Mutex::new(Vec::new());
+
+unsafe extern "C" fn collect_error(_user: *mut c_void, code: TEMCError, _message: *const c_char) {
+    ASYNC_ERRORS.lock().unwrap().push(code);
+}
+
+#[test]
+fn errors_of_queued_work_are_reported_at_the_next_sync_point() {
+    let d = device();
+    unsafe { temcSetDeviceErrorFunction(d, Some(collect_error), std::ptr::null_mut()) };
+    let (w, h) = (32, 16);
+    let color = image(w, h);
+    let mut out = vec![-1f32; w * h * 3];
+    let f = unsafe { temcNewFilter(d, c("TEMC2").as_ptr()) };
+    set_image(f, "color", color.as_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    seti(f, "quality", TEMC_QUALITY_FAST as i32);
+    temcCommitFilter(f);
+    // The monitor cancels; the gate keeps the execution queued until the test has looked.
+    let gate = Gate::default();
+    let user = &gate as *const Gate as *mut c_void;
+    unsafe { temcSetFilterProgressMonitorFunction(f, Some(gated_progress), user) };
+
+    temcExecuteFilterAsync(f);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "queuing it succeeded");
+    assert!(ASYNC_ERRORS.lock().unwrap().is_empty());
+    gate.release();
+    temcSyncDevice(d);
+    let (code, message) = error(d);
+    assert_eq!(code, TEMC_ERROR_CANCELLED, "{message}");
+    assert_eq!(*ASYNC_ERRORS.lock().unwrap(), [TEMC_ERROR_CANCELLED]);
+    assert!(
+        out.iter().all(|&v| v == -1.0),
+        "a cancelled execution writes nothing"
+    );
+    temcSyncDevice(d);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE, "the sync took the error");
+
+    // A blocking execute reports the queued work's error (here, after running itself).
+    temcExecuteFilterAsync(f);
+    unsafe { temcSetFilterProgressMonitorFunction(f, None, std::ptr::null_mut()) };
+    temcExecuteFilter(f);
+    assert_eq!(error(d).0, TEMC_ERROR_CANCELLED);
+    assert!(
+        out.iter().all(|v| v.is_finite() && *v >= 0.0),
+        "the blocking one ran"
+    );
+    temcReleaseFilter(f);
+    temcReleaseDevice(d);
+}
+
+#[test]
+fn releasing_objects_with_queued_work_is_safe() {
+    let d = device();
+    let (w, h) = (40, 24);
+    let bytes = w * h * 3 * 4;
+    let color = image(w, h);
+    let mut out = vec![-1f32; w * h * 3];
+    let cb = temcNewBuffer(d, bytes);
+    let f = unsafe { temcNewFilter(d, c("RT").as_ptr()) };
+    unsafe {
+        temcSetFilterImage(
+            f,
+            c("color").as_ptr(),
+            cb,
+            TEMC_FORMAT_FLOAT3,
+            w,
+            h,
+            0,
+            0,
+            0,
+        )
+    };
+    set_image(f, "output", out.as_mut_ptr(), TEMC_FORMAT_FLOAT3, w, h);
+    seti(f, "hdr", 1);
+    temcCommitFilter(f);
+    let gate = Gate {
+        go_on: true,
+        ..Gate::default()
+    };
+    let user = &gate as *const Gate as *mut c_void;
+    unsafe { temcSetFilterProgressMonitorFunction(f, Some(gated_progress), user) };
+
+    // Queued: the input's copy and two executions. Every handle is released while they
+    // wait at the gate, on another thread, since each last release waits for the queue, as
+    // OIDN's: the queued work holds what it uses.
+    unsafe { temcWriteBufferAsync(cb, 0, bytes, color.as_ptr() as *const c_void) };
+    temcExecuteFilterAsync(f);
+    temcExecuteFilterAsync(f);
+    let (bh, fh, dh) = (cb as usize, f as usize, d as usize);
+    let releaser = std::thread::spawn(move || {
+        temcReleaseBuffer(bh as TEMCBuffer);
+        temcReleaseDevice(dh as TEMCDevice);
+        temcReleaseFilter(fh as TEMCFilter);
+    });
+    assert_eq!(gate.passed.load(Ordering::SeqCst), 0);
+    gate.release();
+    releaser.join().unwrap();
+    assert!(
+        gate.passed.load(Ordering::SeqCst) >= 2,
+        "both executions ran"
+    );
+    assert!(out.iter().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(
+        out.iter().any(|&v| v > 0.0),
+        "the queued copy ran before them"
+    );
+    temcRetainFilter(f);
+    assert_eq!(
+        error(std::ptr::null_mut()).0,
+        TEMC_ERROR_INVALID_ARGUMENT,
+        "released"
+    );
+}

@@ -660,11 +660,21 @@ impl FilterState {
         Ok(SpectralBands::uniform(n as usize, lo, hi)?)
     }
 
+    /// The committed path; an error if the filter has changed since its last commit.
+    fn committed(&self) -> Outcome<Mode> {
+        self.mode.ok_or_else(|| {
+            Failure::operation("the filter is not committed (call commit after changes)")
+        })
+    }
+
+    /// Fails as [`Self::execute`] would on an uncommitted filter.
+    pub fn check_committed(&self) -> Outcome<()> {
+        self.committed().map(|_| ())
+    }
+
     /// Runs the committed filter. On error the output is untouched.
     pub fn execute(&mut self) -> Outcome<()> {
-        let mode = self.mode.ok_or_else(|| {
-            Failure::operation("the filter is not committed (call commit after changes)")
-        })?;
+        let mode = self.committed()?;
         match mode {
             Mode::Empty => Ok(()),
             Mode::Prefilter(kind) => self.prefilter(kind),

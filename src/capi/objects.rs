@@ -4,10 +4,11 @@ use std::collections::HashMap;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::ThreadId;
 
 use super::filter_state::FilterState;
+use super::queue::Queue;
 use super::registry::Registry;
 use super::*;
 use crate::filter::Device;
@@ -69,11 +70,13 @@ struct ErrorState {
     user_ptr: usize,
 }
 
-/// A device: the core's [`Device`] plus the error state of the C ABI.
+/// A device: the core's [`Device`] plus the error state and the queue of the C ABI.
 pub(crate) struct DeviceObj {
     pub device: Device,
     errors: Mutex<ErrorState>,
     pub set_affinity: AtomicBool,
+    /// The work of the `Async` calls, in order.
+    pub queue: Queue,
 }
 
 impl DeviceObj {
@@ -87,7 +90,14 @@ impl DeviceObj {
                 user_ptr: 0,
             }),
             set_affinity: AtomicBool::new(true),
+            queue: Queue::default(),
         }
+    }
+
+    /// OIDN's waitAndThrow: waits for the queued work and fails with its first error.
+    pub fn sync(&self) -> Outcome<()> {
+        self.queue.wait_idle();
+        self.queue.take_error().map_or(Ok(()), Err)
     }
 
     fn errors(&self) -> MutexGuard<'_, ErrorState> {
@@ -111,12 +121,94 @@ impl DeviceObj {
 /// A filter: its device (kept alive by the filter) and its state.
 pub(crate) struct FilterObj {
     pub device: Arc<DeviceObj>,
-    pub state: Mutex<FilterState>,
+    state: Mutex<FilterState>,
+    /// Executions of this filter queued on the device and not finished. While there are
+    /// any, the state stays as they were queued with: changes wait ([`Self::lock_idle`]),
+    /// as OIDN's queued work keeps the images and parameters it was submitted with.
+    queued: Mutex<usize>,
+    /// Signalled when `queued` drops.
+    idle: Condvar,
+}
+
+/// The filter's state with none of its executions queued; holding it keeps others from
+/// being queued, so the state can change.
+pub(crate) struct IdleFilter<'a> {
+    _queued: MutexGuard<'a, usize>,
+    state: MutexGuard<'a, FilterState>,
+}
+
+impl std::ops::Deref for IdleFilter<'_> {
+    type Target = FilterState;
+    fn deref(&self) -> &FilterState {
+        &self.state
+    }
+}
+
+impl std::ops::DerefMut for IdleFilter<'_> {
+    fn deref_mut(&mut self) -> &mut FilterState {
+        &mut self.state
+    }
+}
+
+/// Ends a queued execution's count, also when it panics.
+struct Finished<'a>(&'a FilterObj);
+
+impl Drop for Finished<'_> {
+    fn drop(&mut self) {
+        *self.0.queued() -= 1;
+        self.0.idle.notify_all();
+    }
 }
 
 impl FilterObj {
+    pub fn new(device: Arc<DeviceObj>, state: FilterState) -> Self {
+        Self {
+            device,
+            state: Mutex::new(state),
+            queued: Mutex::new(0),
+            idle: Condvar::new(),
+        }
+    }
+
+    /// The state, for reading (or for running it: queued executions hold it while they run).
     pub fn lock(&self) -> MutexGuard<'_, FilterState> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn queued(&self) -> MutexGuard<'_, usize> {
+        self.queued.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The state, for changing it or running it now: after this filter's queued
+    /// executions. Lock order: `queued`, then `state`.
+    pub fn lock_idle(&self) -> IdleFilter<'_> {
+        let queued = self
+            .idle
+            .wait_while(self.queued(), |n| *n > 0)
+            .unwrap_or_else(|e| e.into_inner());
+        IdleFilter {
+            _queued: queued,
+            state: self.lock(),
+        }
+    }
+
+    /// Queues an execution on the device and returns. Whether the filter is committed is
+    /// checked now, as OIDN does; while executions are queued it cannot have changed.
+    pub fn execute_async(self: &Arc<Self>) -> Outcome<()> {
+        let mut queued = self.queued();
+        if *queued == 0 {
+            self.lock().check_committed()?;
+        }
+        let filter = self.clone();
+        self.device.queue.push(Box::new(move || {
+            let _done = Finished(&filter);
+            // Unlocked before `_done` counts the execution finished.
+            let mut state = filter.lock();
+            state.execute()
+        }))?;
+        // Counted under the lock the job's end takes, so it cannot end before this.
+        *queued += 1;
+        Ok(())
     }
 }
 
