@@ -16,6 +16,7 @@
 
 #![allow(non_camel_case_types)]
 
+mod failure;
 mod filter_state;
 mod objects;
 mod registry;
