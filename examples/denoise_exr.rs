@@ -15,8 +15,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use temc::engine::Model;
-use temc::filter::{Device, Filter};
-use temc::image::{Format, Layout};
+use temc::filter::{Device, Filter, ImageName};
 
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -35,28 +34,22 @@ fn main() -> Result<(), Box<dyn Error>> {
     let (w, h) = (image.width, image.height);
     let color = image.color.ok_or("no colour channels in the input")?;
 
-    // One-channel buffers go through the byte-level API with their layout; the filter
-    // borrows every input, so they must outlive it.
-    let depth_bytes: Option<Vec<u8>> = image
-        .depth
-        .as_ref()
-        .map(|d| d.iter().flat_map(|v| v.to_ne_bytes()).collect());
-
     let device = Device::new();
     device.commit()?;
     let mut filter = match model {
         Some(m) => Filter::with_model(&device, m)?,
         None => Filter::new(&device, "TEMC2")?, // the built-in model (balanced by default)
     };
-    filter.set_input_f32("color", &color, w, h)?;
+    // The filter borrows every input, so they must outlive it. Depth has one channel.
+    filter.set_input_f32(ImageName::Color, &color, w, h)?;
     if let Some(albedo) = &image.albedo {
-        filter.set_input_f32("albedo", albedo, w, h)?;
+        filter.set_input_f32(ImageName::Albedo, albedo, w, h)?;
     }
     if let Some(normal) = &image.normal {
-        filter.set_input_f32("normal", normal, w, h)?;
+        filter.set_input_f32(ImageName::Normal, normal, w, h)?;
     }
-    if let Some(bytes) = &depth_bytes {
-        filter.set_input("depth", bytes, Layout::packed(Format::Float, w, h))?;
+    if let Some(depth) = &image.depth {
+        filter.set_input_f32(ImageName::Depth, depth, w, h)?;
     }
     filter.set_progress_monitor(|p| {
         eprint!("\rdenoising {:3.0} %", p * 100.0);

@@ -17,6 +17,7 @@
 
 #![allow(non_camel_case_types)]
 
+mod failure;
 mod filter_state;
 mod objects;
 mod queue;

@@ -31,5 +31,13 @@ pub enum Error {
     },
 }
 
+impl From<std::convert::Infallible> for Error {
+    /// Lets the setters that take a name or a typed value (`impl TryInto<ImageName>`)
+    /// take the typed value, whose conversion cannot fail.
+    fn from(never: std::convert::Infallible) -> Self {
+        match never {}
+    }
+}
+
 /// Shorthand for results of this crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;

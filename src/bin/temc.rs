@@ -7,8 +7,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use temc::engine::Model;
-use temc::filter::{Device, ExecuteStats, Filter, Quality};
-use temc::image::{Format, Layout};
+use temc::filter::{Device, ExecuteStats, Filter, ImageName, Quality};
 use temc::io::{self, Buffers};
 
 #[derive(Parser)]
@@ -202,12 +201,24 @@ fn denoise(args: &DenoiseArgs) -> temc::Result<()> {
     Ok(())
 }
 
+/// The noisy colour a denoise reads: RGB, or spectral bands the filter converts.
+enum Colour {
+    /// Linear RGB, interleaved.
+    Rgb(Vec<f32>),
+    /// `bands` values per pixel, splitting `range` (nm) evenly.
+    Spectral {
+        values: Vec<f32>,
+        bands: usize,
+        range: (f32, f32),
+    },
+}
+
 /// The images a denoise reads: colour as f32, the aux buffers as half floats (they are
 /// noise-free guides: half the memory, and the network sees half precision anyway).
 struct Inputs {
     width: usize,
     height: usize,
-    color: Vec<f32>,
+    color: Colour,
     albedo: Option<Vec<half::f16>>,
     normal: Option<Vec<half::f16>>,
     depth: Option<Vec<half::f16>>,
@@ -216,7 +227,10 @@ struct Inputs {
 impl Inputs {
     fn bytes(&self) -> usize {
         let half = |b: &Option<Vec<half::f16>>| b.as_ref().map_or(0, |v| v.len() * 2);
-        self.color.len() * 4 + half(&self.albedo) + half(&self.normal) + half(&self.depth)
+        let color = match &self.color {
+            Colour::Rgb(v) | Colour::Spectral { values: v, .. } => v.len() * 4,
+        };
+        color + half(&self.albedo) + half(&self.normal) + half(&self.depth)
     }
 }
 
@@ -263,7 +277,7 @@ fn read_inputs(args: &DenoiseArgs) -> temc::Result<Inputs> {
         temc::color::layers::SPECTRAL_MIN_NM,
         temc::color::layers::SPECTRAL_MAX_NM,
     ));
-    colour_from_spectral(&mut bufs, &args.color, args.spectral, range)?;
+    let spectral = spectral_colour(&mut bufs, &args.color, args.spectral, range)?;
     let aux = if args.color_only {
         AuxArg::None
     } else {
@@ -275,7 +289,7 @@ fn read_inputs(args: &DenoiseArgs) -> temc::Result<Inputs> {
     if aux == AuxArg::None {
         bufs.albedo = None;
     }
-    let Some(color) = bufs.color.take() else {
+    let Some(color) = spectral.or(bufs.color.take().map(Colour::Rgb)) else {
         return Err(temc::Error::InvalidArgument(format!(
             "{}: no colour channels found",
             args.color.display()
@@ -339,17 +353,26 @@ fn run_filter(
         Some(m) => Filter::with_model(device, m)?,
         None => Filter::new(device, "TEMC2")?,
     };
-    f.set_input_f32("color", &inputs.color, w, h)?;
+    match &inputs.color {
+        Colour::Rgb(rgb) => f.set_input_f32(ImageName::Color, rgb, w, h)?,
+        Colour::Spectral {
+            values,
+            bands,
+            range,
+        } => {
+            f.set_spectral_bands(*bands)?;
+            f.set_spectral_range(range.0, range.1)?;
+            f.set_input_f32(ImageName::Spectral, values, w, h)?;
+        }
+    }
     let aux = [
-        ("albedo", &inputs.albedo, Format::Half3),
-        ("normal", &inputs.normal, Format::Half3),
-        ("depth", &inputs.depth, Format::Half),
+        (ImageName::Albedo, &inputs.albedo),
+        (ImageName::Normal, &inputs.normal),
+        (ImageName::Depth, &inputs.depth),
     ];
-    for (name, buf, format) in aux {
+    for (name, buf) in aux {
         if let Some(v) = buf {
-            // SAFETY: f16 is two plain bytes; the view lives as long as `inputs`.
-            let bytes = unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, v.len() * 2) };
-            f.set_input(name, bytes, Layout::packed(format, w, h))?;
+            f.set_input_f16(name, v, w, h)?;
         }
     }
     f.set_quality(args.quality);
@@ -424,16 +447,16 @@ fn parse_range(s: &str) -> Result<(f32, f32), String> {
     Ok((a, b))
 }
 
-/// With `wanted` (or when the file has a spectral layer and no colour), replaces the colour
-/// by the spectral layer's linear sRGB over `range` split into equal bands.
-fn colour_from_spectral(
+/// With `wanted` (or when the file has a spectral layer and no colour), the spectral layer
+/// as the colour: the filter converts its bands (`range` split evenly) to linear sRGB.
+fn spectral_colour(
     bufs: &mut Buffers,
     path: &Path,
     wanted: bool,
     range: (f32, f32),
-) -> temc::Result<()> {
+) -> temc::Result<Option<Colour>> {
     if !(wanted || bufs.color.is_none()) {
-        return Ok(());
+        return Ok(None);
     }
     let Some(values) = bufs.spectral.take() else {
         if wanted {
@@ -442,11 +465,13 @@ fn colour_from_spectral(
                 path.display()
             )));
         }
-        return Ok(());
+        return Ok(None);
     };
-    let bands = temc::color::SpectralBands::uniform(bufs.spectral_bands, range.0, range.1)?;
-    bufs.color = Some(bands.image_to_linear_srgb(&values));
-    Ok(())
+    Ok(Some(Colour::Spectral {
+        values,
+        bands: bufs.spectral_bands,
+        range,
+    }))
 }
 
 fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {
@@ -536,18 +561,14 @@ fn bench(
     device.set_num_threads(threads);
     device.commit()?;
     let mut f = Filter::with_model(&device, model.clone())?;
-    let kind = f.kind();
-    f.set_input_f32("color", &color, w, h)?;
+    let kind = f.kind().name();
+    f.set_input_f32(ImageName::Color, &color, w, h)?;
     if aux != AuxArg::None {
-        f.set_input_f32("albedo", &albedo, w, h)?;
+        f.set_input_f32(ImageName::Albedo, &albedo, w, h)?;
     }
     if aux == AuxArg::Full {
-        f.set_input_f32("normal", &normal, w, h)?;
-        let bytes = unsafe {
-            // SAFETY: f32 is four plain bytes; the view lives as long as `depth`.
-            std::slice::from_raw_parts(depth.as_ptr() as *const u8, depth.len() * 4)
-        };
-        f.set_input("depth", bytes, Layout::packed(Format::Float, w, h))?;
+        f.set_input_f32(ImageName::Normal, &normal, w, h)?;
+        f.set_input_f32(ImageName::Depth, &depth, w, h)?;
     }
     f.set_max_memory_mb(max_memory_mb);
     let t = Instant::now();

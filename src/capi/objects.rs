@@ -7,57 +7,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::ThreadId;
 
-use super::filter_state::FilterState;
+pub(crate) use super::failure::{Failure, Outcome};
+use super::filter_state::{FilterDevice, FilterState, ImageBuffer};
 use super::queue::Queue;
 use super::registry::Registry;
-use super::*;
+use super::{
+    TEMCBuffer, TEMCDevice, TEMCError, TEMCErrorFunction, TEMCFilter, TEMCStorage, TEMC_ERROR_NONE,
+    TEMC_ERROR_OUT_OF_MEMORY, TEMC_ERROR_UNKNOWN, TEMC_STORAGE_HOST,
+};
 use crate::filter::Device;
-use crate::Error;
-
-/// A failure to report through the C ABI: an OIDN error code and its message.
-#[derive(Debug)]
-pub(crate) struct Failure {
-    pub code: TEMCError,
-    pub message: String,
-}
-
-impl Failure {
-    pub fn new(code: TEMCError, message: impl Into<String>) -> Self {
-        Self {
-            code,
-            message: message.into(),
-        }
-    }
-
-    pub fn invalid(message: impl Into<String>) -> Self {
-        Self::new(TEMC_ERROR_INVALID_ARGUMENT, message)
-    }
-
-    pub fn operation(message: impl Into<String>) -> Self {
-        Self::new(TEMC_ERROR_INVALID_OPERATION, message)
-    }
-
-    pub fn unsupported(message: impl Into<String>) -> Self {
-        Self::new(TEMC_ERROR_UNSUPPORTED_HARDWARE, message)
-    }
-}
-
-impl From<Error> for Failure {
-    fn from(e: Error) -> Self {
-        let code = match &e {
-            Error::InvalidArgument(_) | Error::Model(_) | Error::Io { .. } => {
-                TEMC_ERROR_INVALID_ARGUMENT
-            }
-            Error::InvalidOperation(_) => TEMC_ERROR_INVALID_OPERATION,
-            Error::Cancelled => TEMC_ERROR_CANCELLED,
-            Error::OutOfMemory(_) => TEMC_ERROR_OUT_OF_MEMORY,
-            Error::Inference(_) => TEMC_ERROR_UNKNOWN,
-        };
-        Self::new(code, e.to_string())
-    }
-}
-
-pub(crate) type Outcome<T> = Result<T, Failure>;
 
 struct ErrorState {
     /// Per thread, as OIDN keeps a device's errors: a thread sees the errors of its own
@@ -115,6 +73,16 @@ impl DeviceObj {
         if self.device.verbose() >= 1 {
             eprintln!("temc: warning: {message}");
         }
+    }
+}
+
+impl FilterDevice for DeviceObj {
+    fn device(&self) -> &Device {
+        &self.device
+    }
+
+    fn warn(&self, message: &str) {
+        DeviceObj::warn(self, message)
     }
 }
 
@@ -286,6 +254,12 @@ impl BufferObj {
                 self.size
             ))),
         }
+    }
+}
+
+impl ImageBuffer for BufferObj {
+    fn size(&self) -> usize {
+        self.size
     }
 }
 

@@ -6,14 +6,15 @@
 
 use std::sync::{Arc, OnceLock};
 
-use super::Quality;
+use super::{Kind, Quality};
 
 const FAST: &[u8] = include_bytes!("../../onnx/temc2-fast.onnx");
 const BALANCED: &[u8] = include_bytes!("../../onnx/temc2-balanced.onnx");
 
 /// The built-in ONNX model for filter type `kind` at `quality`, if this build has one
-/// (only "TEMC2" does). [`Quality::Default`] is [`Quality::Balanced`], and so for now is
-/// [`Quality::High`] (see the module docs).
+/// (only "TEMC2" does). `quality` is resolved for "TEMC2" ([`Quality::resolve`]:
+/// [`Quality::Default`] is [`Quality::Balanced`]); [`Quality::High`] runs the balanced
+/// network for now (see the module docs).
 ///
 /// ```
 /// use temc::filter::{builtin_model, Quality};
@@ -23,7 +24,7 @@ const BALANCED: &[u8] = include_bytes!("../../onnx/temc2-balanced.onnx");
 /// assert!(builtin_model("DEMC", Quality::High).is_none());
 /// ```
 pub fn builtin_model(kind: &str, quality: Quality) -> Option<&'static [u8]> {
-    (kind == "TEMC2").then_some(match quality {
+    (kind == "TEMC2").then_some(match quality.resolve(Kind::Temc2) {
         Quality::Fast => FAST,
         Quality::Default | Quality::Balanced | Quality::High => BALANCED,
     })
@@ -35,7 +36,7 @@ pub(super) fn shared(kind: &str, quality: Quality) -> Option<Arc<[u8]>> {
     static CACHE: [OnceLock<Arc<[u8]>>; 2] = [const { OnceLock::new() }; 2];
     let bytes = builtin_model(kind, quality)?;
     // One slot per distinct model: high shares balanced's while it runs those bytes.
-    let slot = match quality {
+    let slot = match quality.resolve(Kind::Temc2) {
         Quality::Fast => 0,
         Quality::Default | Quality::Balanced | Quality::High => 1,
     };

@@ -1,26 +1,36 @@
-//! One execution, in named stages: [`validate`] the images, [`snapshot`] inputs that share
+//! One execution, in named stages: the colour [`input`](super::input) stage (linear, sRGB or
+//! spectral colour to linear RGB), [`validate`] the images, [`snapshot`] inputs that share
 //! bytes with the output, compute the [`image_statistics`] once, [`plan`] the tiles, then per
 //! tile (in parallel) [`pack_tile`], run the network, [`reconstruct`](crate::reconstruct)
 //! the tile's core from the predicted filters and the noisy linear radiance; then
 //! [`keep_mean`](crate::keep_mean) on the whole image; finally [`write_output`], only when
-//! every tile has succeeded.
+//! every tile has succeeded, after the [`input::encode_output`] stage. The other execution
+//! path, [`prefilter`], denoises a lone aux image.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
+use super::input::{self, ColorInput};
 use super::{ExecuteStats, ImageName, Monitor, RawImage};
-use crate::color::{self, features, Exposure};
+use crate::color::{self, features, Exposure, SpectralBands};
 use crate::engine::{Model, ModelInfo, NetInput};
-use crate::image::{read3, Layout};
+use crate::image::{read3, write3, Layout};
+use crate::prefilter::{filter_aux, AuxKind};
 use crate::tile::{Tile, TilePlan};
 use crate::Error;
 use crate::{keep_mean, reconstruct};
 
 pub(super) struct Job<'m> {
     pub model: &'m Arc<Model>,
-    pub images: [Option<RawImage>; 5],
+    pub images: [Option<RawImage>; 6],
+    /// How the colour becomes linear RGB.
+    pub color_input: ColorInput,
+    /// The bands of a spectral colour input.
+    pub bands: Option<&'m SpectralBands>,
+    /// The staging buffer a converted colour input is written to (allocated at commit).
+    pub staged: &'m mut [f32],
     pub hdr: bool,
     pub input_scale: Option<f32>,
     pub max_memory_bytes: usize,
@@ -118,7 +128,7 @@ const NAMES: [ImageName; 5] = [
 
 /// Stage 1: colour is set, every image has colour's size and enough channels. Returns
 /// (width, height).
-fn validate(images: &[Option<RawImage>; 5]) -> Result<(usize, usize), Error> {
+fn validate(images: &[Option<RawImage>; 6]) -> Result<(usize, usize), Error> {
     let color = images[ImageName::Color as usize]
         .ok_or_else(|| Error::InvalidOperation("image \"color\" is not set".into()))?;
     let (w, h) = (color.layout.width, color.layout.height);
@@ -148,7 +158,7 @@ fn validate(images: &[Option<RawImage>; 5]) -> Result<(usize, usize), Error> {
 
 /// Stage 2: inputs that share bytes with the output are copied first, because tiles write
 /// while others still read.
-fn snapshot(images: &[Option<RawImage>; 5]) -> Result<Sources, Error> {
+fn snapshot(images: &[Option<RawImage>; 6]) -> Result<Sources, Error> {
     let output = images[ImageName::Output as usize];
     let mut snapshot_bytes = 0usize;
     let mut source = |i: ImageName| -> Result<Option<Source>, Error> {
@@ -379,8 +389,22 @@ pub(super) fn run(
 ) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
     let model = job.model.as_ref();
     let info = model.info();
-    let (w, h) = validate(&job.images)?;
-    let src = snapshot(&job.images)?;
+    let mut images = job.images;
+    let source = match job.color_input {
+        ColorInput::Spectral => ImageName::Spectral,
+        _ => ImageName::Color,
+    };
+    if let Some(staged) = input::stage(
+        job.color_input,
+        images[source as usize].as_ref(),
+        job.bands,
+        job.staged,
+    ) {
+        images[ImageName::Color as usize] = Some(staged);
+    }
+    images[ImageName::Spectral as usize] = None;
+    let (w, h) = validate(&images)?;
+    let src = snapshot(&images)?;
     let stats = image_statistics(&job, &src, info)?;
     let threads = pool.current_num_threads().max(1);
     let (plan, estimated_peak) = plan(&job, (w, h), src.snapshot_bytes, threads)?;
@@ -448,6 +472,7 @@ pub(super) fn run(
     let input = src.color.pixels().map(|c| radiance(c, job.hdr));
     keep_mean::stage(&mut staged, input, (w, h), limit)
         .map_err(|_| Error::OutOfMemory(format!("keep-mean spread for {w}x{h}")))?;
+    input::encode_output(job.color_input, &mut staged);
 
     let stats = ExecuteStats {
         tiles: n_tiles,
@@ -457,7 +482,7 @@ pub(super) fn run(
         threads,
         estimated_peak_bytes: estimated_peak,
     };
-    match job.images[ImageName::Output as usize] {
+    match images[ImageName::Output as usize] {
         None => Ok((stats, Some(staged))),
         Some(output) => {
             write_output(&output, &staged, (w, h));
@@ -474,7 +499,7 @@ fn write_output(output: &RawImage, staged: &[f32], (w, h): (usize, usize)) {
             let o = (y * w + x) * 3;
             // SAFETY: the output layout was validated against its buffer when set.
             unsafe {
-                crate::image::write3(
+                write3(
                     output.ptr,
                     &layout,
                     x,
@@ -484,6 +509,37 @@ fn write_output(output: &RawImage, staged: &[f32], (w, h): (usize, usize)) {
             };
         }
     }
+}
+
+/// The prefilter path: denoises the aux image `src` and writes it to `output`, or
+/// returns it (packed RGB) when there is none.
+pub(super) fn prefilter(
+    src: &RawImage,
+    output: Option<&RawImage>,
+    kind: AuxKind,
+) -> Option<Vec<f32>> {
+    let l = src.layout;
+    let mut input = Vec::with_capacity(l.width * l.height * 3);
+    for y in 0..l.height {
+        for x in 0..l.width {
+            // SAFETY: validated layout, caller-kept buffer.
+            input.extend_from_slice(&unsafe { read3(src.ptr, &l, x, y) });
+        }
+    }
+    let result = filter_aux(&input, l.width, l.height, kind);
+    let Some(out) = output else {
+        return Some(result);
+    };
+    // Sizes were checked at commit, and images cannot change without another commit.
+    let o = out.layout;
+    for y in 0..o.height.min(l.height) {
+        for x in 0..o.width.min(l.width) {
+            let i = (y * l.width + x) * 3;
+            // SAFETY: validated layout; the input was copied first, so in-place works.
+            unsafe { write3(out.ptr, &o, x, y, [result[i], result[i + 1], result[i + 2]]) };
+        }
+    }
+    None
 }
 
 #[cfg(test)]

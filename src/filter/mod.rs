@@ -23,14 +23,22 @@
 //! ```
 
 mod builtin;
+mod commit;
 mod denormals;
 mod execute;
+mod input;
+mod kind;
 
 pub use builtin::builtin_model;
+pub use commit::ExecutionPath;
+pub use input::ColorInput;
+pub use kind::Kind;
 
 use std::marker::PhantomData;
 use std::sync::{Arc, Mutex};
 
+use crate::color::layers::{SPECTRAL_MAX_NM, SPECTRAL_MIN_NM};
+use crate::color::SpectralBands;
 use crate::engine::Model;
 use crate::image::{Format, Layout};
 use crate::Error;
@@ -75,6 +83,17 @@ impl Quality {
         }
     }
 
+    /// The quality that runs for a filter of type `kind`: [`Quality::Default`] is high
+    /// for OIDN's types (OIDN's default) and balanced for temc's; the others are themselves.
+    /// The one place that decides what the default quality is.
+    pub fn resolve(self, kind: Kind) -> Quality {
+        match self {
+            Quality::Default if kind.is_oidn() => Quality::High,
+            Quality::Default => Quality::Balanced,
+            q => q,
+        }
+    }
+
     /// The quality with this numeric value.
     pub fn from_raw(v: i32) -> Option<Self> {
         Some(match v {
@@ -94,17 +113,34 @@ pub const DEFAULT_MAX_MEMORY_MB: usize = 2048;
 pub const FILTER_TYPES: [&str; 4] = ["TEMC2", "TEMC1", "DEMC", "AE"];
 
 /// The filter type that runs a model of `architecture` (a model's `temc.architecture`,
-/// e.g. "temc2" -> "TEMC2").
+/// e.g. "temc2" -> "TEMC2"); [`Kind::for_architecture`] by name.
 pub fn filter_type_for(architecture: &str) -> Result<&'static str, Error> {
-    FILTER_TYPES
-        .iter()
-        .find(|k| k.eq_ignore_ascii_case(architecture))
-        .copied()
-        .ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "architecture {architecture:?} has no filter type (expected one of {FILTER_TYPES:?})"
-            ))
-        })
+    Kind::for_architecture(architecture).map(Kind::name)
+}
+
+/// How much memory one execution may use (OIDN's `maxMemoryMB`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaxMemory {
+    /// No explicit limit (OIDN's -1): the budget is [`DEFAULT_MAX_MEMORY_MB`].
+    Auto,
+    /// As little as possible (OIDN's 0): tiles whose core is four of the model's overlaps
+    /// (at least 64 pixels) per side, unless a tile size is set.
+    Least,
+    /// A budget in MB: tiles shrink until the estimated peak fits it, down to the smallest
+    /// tile the model allows (below that floor, 0 included, the budget is exceeded: like
+    /// OIDN's `maxMemoryMB`, it is approximate).
+    Mb(usize),
+}
+
+impl MaxMemory {
+    /// The budget in bytes the tile plan fits.
+    fn bytes(self) -> usize {
+        match self {
+            MaxMemory::Auto => DEFAULT_MAX_MEMORY_MB << 20,
+            MaxMemory::Least => 0,
+            MaxMemory::Mb(mb) => mb.saturating_mul(1 << 20),
+        }
+    }
 }
 
 /// User weights: ONNX bytes (parsed at commit) or a model parsed already.
@@ -217,9 +253,9 @@ impl Device {
 }
 
 /// The images a filter knows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum ImageName {
-    /// Noisy colour, linear HDR RGB (required).
+    /// Noisy colour, linear HDR RGB (or sRGB-encoded with "srgb"); this or `Spectral`.
     Color,
     /// Albedo, RGB in [0, 1].
     Albedo,
@@ -229,30 +265,33 @@ pub enum ImageName {
     Depth,
     /// Denoised colour (required); may alias `color`.
     Output,
+    /// Noisy colour as spectral bands: [`Filter::set_spectral_bands`] values per pixel,
+    /// the format that of one band, splitting [`Filter::set_spectral_range`] evenly.
+    Spectral,
 }
 
 impl ImageName {
+    /// Every image name, in index order.
+    pub const ALL: [ImageName; 6] = [
+        ImageName::Color,
+        ImageName::Albedo,
+        ImageName::Normal,
+        ImageName::Depth,
+        ImageName::Output,
+        ImageName::Spectral,
+    ];
+
     /// Parses an OIDN-style image name.
     pub fn parse(name: &str) -> Result<Self, Error> {
-        Ok(match name {
-            "color" => ImageName::Color,
-            "albedo" => ImageName::Albedo,
-            "normal" => ImageName::Normal,
-            "depth" => ImageName::Depth,
-            "output" => ImageName::Output,
-            "spectral" => {
-                return Err(Error::InvalidArgument(
-                    "image \"spectral\" is not supported by the filter yet: convert bands with \
-                     temc::color::SpectralBands and pass \"color\""
-                        .into(),
+        Self::ALL
+            .into_iter()
+            .find(|n| n.as_str() == name)
+            .ok_or_else(|| {
+                Error::InvalidArgument(format!(
+                    "unknown image name {name:?} (expected color, albedo, normal, depth, \
+                     output or spectral)"
                 ))
-            }
-            other => {
-                return Err(Error::InvalidArgument(format!(
-                    "unknown image name {other:?} (expected color, albedo, normal, depth or output)"
-                )))
-            }
-        })
+            })
     }
 
     fn index(self) -> usize {
@@ -261,8 +300,35 @@ impl ImageName {
 
     /// The name as the API spells it.
     pub fn as_str(self) -> &'static str {
-        ["color", "albedo", "normal", "depth", "output"][self.index()]
+        ["color", "albedo", "normal", "depth", "output", "spectral"][self.index()]
     }
+
+    /// Channels of a tightly packed f32 or f16 input: 1 for depth and for one spectral
+    /// band, 3 otherwise.
+    fn packed_channels(self) -> usize {
+        match self {
+            ImageName::Depth | ImageName::Spectral => 1,
+            _ => 3,
+        }
+    }
+}
+
+impl TryFrom<&str> for ImageName {
+    type Error = Error;
+    fn try_from(name: &str) -> Result<Self, Error> {
+        ImageName::parse(name)
+    }
+}
+
+impl std::fmt::Display for ImageName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// An image name, typed or as a string ("color"): what the image setters take.
+fn image_name(name: impl TryInto<ImageName, Error: Into<Error>>) -> Result<ImageName, Error> {
+    name.try_into().map_err(Into::into)
 }
 
 /// An image set on a filter: a raw buffer pointer and its validated layout.
@@ -270,8 +336,11 @@ impl ImageName {
 pub(crate) struct RawImage {
     pub ptr: *mut u8,
     pub layout: Layout,
-    /// Bytes from `ptr` that the layout touches.
+    /// Bytes from `ptr` that the layout touches (0 for an empty image).
     pub span: usize,
+    /// Bytes readable from `ptr` (`usize::MAX` when the caller only promised `span`): a
+    /// "spectral" image's band count, checked at commit, must fit it.
+    pub capacity: usize,
 }
 
 // SAFETY: a RawImage is only dereferenced during execute, under the contract of the setter
@@ -282,45 +351,80 @@ unsafe impl Sync for RawImage {}
 
 type Monitor<'a> = Box<dyn FnMut(f64) -> bool + Send + 'a>;
 
+/// The "spectral" image's bands.
+#[derive(Clone, Copy, Debug)]
+struct SpectralParams {
+    /// Bands per pixel (0: not set).
+    bands: usize,
+    min_nm: f32,
+    max_nm: f32,
+}
+
+/// What a successful commit prepared.
+struct Committed {
+    path: ExecutionPath,
+    /// The bands of a spectral colour input.
+    bands: Option<SpectralBands>,
+}
+
 /// A denoising filter. The lifetime ties borrowed images to the filter.
 pub struct Filter<'a> {
     device: Device,
-    kind: &'static str,
-    images: [Option<RawImage>; 5],
+    kind: Kind,
+    images: [Option<RawImage>; 6],
     hdr: bool,
+    srgb: bool,
+    clean_aux: bool,
     quality: Quality,
-    max_memory_mb: usize,
+    max_memory: MaxMemory,
     tile_size: usize,
     input_scale: Option<f32>,
+    spectral: SpectralParams,
+    /// OIDN's checks at commit (see [`Filter::set_oidn_checks`]).
+    checked: bool,
     weights: Option<Weights>,
     monitor: Option<Monitor<'a>>,
-    committed: Option<Arc<Model>>,
-    /// The weights the committed model was loaded from, to skip reloading.
+    /// The loaded model, kept while nothing changes.
+    model: Option<Arc<Model>>,
+    /// The weights the loaded model was loaded from, to skip reloading.
     loaded_from: Option<Arc<[u8]>>,
+    committed: Option<Committed>,
+    /// Linear RGB made from sRGB or spectral colour (allocated at commit).
+    staged: Vec<f32>,
     _borrows: PhantomData<&'a mut [u8]>,
 }
 
 impl<'a> Filter<'a> {
-    /// A filter of type `kind` ("TEMC2", "TEMC1", "DEMC" or "AE") on `device`.
-    pub fn new(device: &Device, kind: &str) -> Result<Self, Error> {
-        let kind = FILTER_TYPES.iter().find(|k| **k == kind).ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "unknown filter type {kind:?} (expected one of {FILTER_TYPES:?})"
-            ))
-        })?;
+    /// A filter of type `kind` ([`Kind`], or its name: "TEMC2", "TEMC1", "DEMC", "AE",
+    /// "RT", "RTLightmap") on `device`, with that type's defaults.
+    pub fn new(
+        device: &Device,
+        kind: impl TryInto<Kind, Error: Into<Error>>,
+    ) -> Result<Self, Error> {
+        let kind = kind.try_into().map_err(Into::into)?;
         Ok(Self {
             device: device.clone(),
             kind,
-            images: [None; 5],
-            hdr: true,
-            quality: Quality::Default,
-            max_memory_mb: DEFAULT_MAX_MEMORY_MB,
+            images: [None; 6],
+            hdr: kind.default_hdr(),
+            srgb: false,
+            clean_aux: false,
+            quality: kind.default_quality(),
+            max_memory: kind.default_max_memory(),
             tile_size: 0,
             input_scale: None,
+            spectral: SpectralParams {
+                bands: 0,
+                min_nm: SPECTRAL_MIN_NM,
+                max_nm: SPECTRAL_MAX_NM,
+            },
+            checked: kind.is_oidn(),
             weights: None,
             monitor: None,
-            committed: None,
+            model: None,
             loaded_from: None,
+            committed: None,
+            staged: Vec::new(),
             _borrows: PhantomData,
         })
     }
@@ -328,60 +432,108 @@ impl<'a> Filter<'a> {
     /// A filter for a parsed `model`: the filter type comes from the model's architecture,
     /// and commit uses the model as it is (no second parse).
     pub fn with_model(device: &Device, model: Arc<Model>) -> Result<Self, Error> {
-        let mut f = Self::new(device, filter_type_for(&model.info().architecture)?)?;
+        let mut f = Self::new(device, Kind::for_architecture(&model.info().architecture)?)?;
         f.weights = Some(Weights::Parsed(model));
         Ok(f)
     }
 
     /// The filter type.
-    pub fn kind(&self) -> &'static str {
+    pub fn kind(&self) -> Kind {
         self.kind
     }
 
     fn changed(&mut self) {
         self.committed = None;
+        self.model = None;
     }
 
-    fn set_raw(&mut self, name: &str, img: RawImage) -> Result<(), Error> {
-        let n = ImageName::parse(name)?;
-        self.images[n.index()] = Some(img);
+    fn set_raw(&mut self, name: ImageName, img: RawImage) -> Result<(), Error> {
+        if !self.kind.accepts(name) {
+            return Err(Error::InvalidArgument(format!(
+                "{} takes no image {:?}",
+                self.kind,
+                name.as_str()
+            )));
+        }
+        self.images[name.index()] = Some(img);
         self.changed();
         Ok(())
     }
 
-    /// Sets an input image from a byte buffer with any layout.
-    pub fn set_input(&mut self, name: &str, data: &'a [u8], layout: Layout) -> Result<(), Error> {
-        if ImageName::parse(name)? == ImageName::Output {
-            return Err(Error::InvalidArgument(
-                "\"output\" must be set with set_output (it is written)".into(),
-            ));
+    /// Checks `layout` for image `name` and returns the bytes it spans: for "spectral" the
+    /// span of the bands set (at least one); with OIDN's rules ([`Self::set_oidn_checks`])
+    /// 0 for an empty image (no pixels), which is refused otherwise.
+    pub fn image_span(&self, name: ImageName, layout: &Layout) -> Result<usize, Error> {
+        if self.checked && commit::is_empty(layout) {
+            Ok(0)
+        } else if name == ImageName::Spectral {
+            input::check_spectral_layout(layout)?;
+            input::spectral_span(layout, self.spectral.bands.max(1))
+        } else {
+            layout.validate(name.as_str())
         }
-        let span = layout.validate(name)?;
-        if span > data.len() {
+    }
+
+    /// Sets an image after checking its layout; `capacity` is the bytes readable at `ptr`.
+    fn set_checked(
+        &mut self,
+        name: ImageName,
+        ptr: *mut u8,
+        layout: Layout,
+        capacity: usize,
+    ) -> Result<(), Error> {
+        let span = self.image_span(name, &layout)?;
+        if span > capacity {
             return Err(Error::InvalidArgument(format!(
-                "image {name:?}: layout spans {span} bytes, buffer has {}",
-                data.len()
+                "image {:?}: layout spans {span} bytes, buffer has {capacity}",
+                name.as_str()
+            )));
+        }
+        if span > 0 && ptr.is_null() {
+            return Err(Error::InvalidArgument(format!(
+                "image {:?}: NULL pointer",
+                name.as_str()
             )));
         }
         self.set_raw(
             name,
             RawImage {
-                ptr: data.as_ptr() as *mut u8,
+                ptr,
                 layout,
                 span,
+                capacity,
             },
         )
     }
 
-    /// Sets a tightly packed f32 input: 3 channels for colour, albedo and normal, 1 for depth.
+    /// Sets an input image from a byte buffer with any layout (an image of no pixels is
+    /// OIDN's empty image). For "spectral" the format is the type of one band.
+    pub fn set_input(
+        &mut self,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
+        data: &'a [u8],
+        layout: Layout,
+    ) -> Result<(), Error> {
+        let name = image_name(name)?;
+        if name == ImageName::Output {
+            return Err(Error::InvalidArgument(
+                "\"output\" must be set with set_output (it is written)".into(),
+            ));
+        }
+        self.set_checked(name, data.as_ptr() as *mut u8, layout, data.len())
+    }
+
+    /// Sets a tightly packed f32 input: 3 channels for colour, albedo and normal, 1 for
+    /// depth and for each spectral band.
     pub fn set_input_f32(
         &mut self,
-        name: &str,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
         data: &'a [f32],
         width: usize,
         height: usize,
     ) -> Result<(), Error> {
-        let format = if name == "depth" {
+        let name = image_name(name)?;
+        let format = if name.packed_channels() == 1 {
             Format::Float
         } else {
             Format::Float3
@@ -393,23 +545,32 @@ impl<'a> Filter<'a> {
         self.set_input(name, bytes, Layout::packed(format, width, height))
     }
 
+    /// Sets a tightly packed half-float input: 3 channels for colour, albedo and normal, 1
+    /// for depth and for each spectral band.
+    pub fn set_input_f16(
+        &mut self,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
+        data: &'a [half::f16],
+        width: usize,
+        height: usize,
+    ) -> Result<(), Error> {
+        let name = image_name(name)?;
+        let format = if name.packed_channels() == 1 {
+            Format::Half
+        } else {
+            Format::Half3
+        };
+        // SAFETY: f16 is two plain bytes (a transparent u16); any f16 is valid as bytes.
+        let bytes = unsafe {
+            std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data))
+        };
+        self.set_input(name, bytes, Layout::packed(format, width, height))
+    }
+
     /// Sets the output image from a byte buffer with any layout.
     pub fn set_output(&mut self, data: &'a mut [u8], layout: Layout) -> Result<(), Error> {
-        let span = layout.validate("output")?;
-        if span > data.len() {
-            return Err(Error::InvalidArgument(format!(
-                "image \"output\": layout spans {span} bytes, buffer has {}",
-                data.len()
-            )));
-        }
-        self.set_raw(
-            "output",
-            RawImage {
-                ptr: data.as_mut_ptr(),
-                layout,
-                span,
-            },
-        )
+        let capacity = data.len();
+        self.set_checked(ImageName::Output, data.as_mut_ptr(), layout, capacity)
     }
 
     /// Sets a tightly packed f32 RGB output.
@@ -426,54 +587,131 @@ impl<'a> Filter<'a> {
     }
 
     /// Sets an image from a raw pointer (the C ABI's `temcSetSharedFilterImage`); the output
-    /// may alias an input (in-place denoising).
+    /// may alias an input (in-place denoising). An image of no pixels may have any pointer.
     ///
     /// # Safety
-    /// `ptr` must be valid for reads (and writes, for "output") of the bytes `layout` spans,
-    /// from this call until the image is unset or the filter is dropped.
+    /// `ptr` must be valid for reads (and writes, for "output") of the bytes `layout` spans
+    /// (for "spectral", with the band count set at commit), from this call until the image
+    /// is unset or the filter is dropped.
     pub unsafe fn set_shared_image(
         &mut self,
-        name: &str,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
         ptr: *mut u8,
         layout: Layout,
     ) -> Result<(), Error> {
-        if ptr.is_null() {
-            return Err(Error::InvalidArgument(format!(
-                "image {name:?}: NULL pointer"
-            )));
-        }
-        let span = layout.validate(name)?;
-        self.set_raw(name, RawImage { ptr, layout, span })
+        // SAFETY: forwarded contract; the caller promised what the layout spans.
+        unsafe { self.set_shared_image_in(image_name(name)?, ptr, layout, usize::MAX) }
+    }
+
+    /// [`Self::set_shared_image`] for memory of `capacity` readable bytes (a C buffer):
+    /// the layout, and at commit a "spectral" image's bands, must fit it.
+    ///
+    /// # Safety
+    /// `ptr` must be valid for reads (and writes, for "output") of `capacity` bytes, from
+    /// this call until the image is unset or the filter is dropped.
+    pub unsafe fn set_shared_image_in(
+        &mut self,
+        name: ImageName,
+        ptr: *mut u8,
+        layout: Layout,
+        capacity: usize,
+    ) -> Result<(), Error> {
+        self.set_checked(name, ptr, layout, capacity)
     }
 
     /// Removes an image.
-    pub fn unset_image(&mut self, name: &str) -> Result<(), Error> {
-        let n = ImageName::parse(name)?;
+    pub fn unset_image(
+        &mut self,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
+    ) -> Result<(), Error> {
+        let n = image_name(name)?;
         self.images[n.index()] = None;
         self.changed();
         Ok(())
     }
 
-    /// HDR input (the default, and what temc is built for). With `false` the input is
-    /// taken as display-referred and clamped to [0, 1], and so is the output.
+    /// Whether image `name` is set.
+    pub fn has_image(&self, name: ImageName) -> bool {
+        self.images[name.index()].is_some()
+    }
+
+    /// HDR input: linear radiance of any range (temc's default; "RT" defaults to false, as
+    /// in OIDN). With `false` the input is taken as display-referred and clamped to [0, 1],
+    /// and so is the output. "RTLightmap" is always HDR: `false` is ignored.
     pub fn set_hdr(&mut self, hdr: bool) {
-        self.hdr = hdr;
+        self.hdr = hdr || self.kind.hdr_only();
         self.changed();
     }
 
-    /// Quality mode: which built-in TEMC-2 model runs (see [`builtin_model`]); ignored
-    /// when user weights are set.
+    /// The "hdr" setting.
+    pub fn hdr(&self) -> bool {
+        self.hdr
+    }
+
+    /// sRGB-encoded colour (OIDN's "srgb", for LDR input): it is decoded before the
+    /// denoise and the output encoded. With "hdr" too, OIDN's checks refuse the commit.
+    /// "RTLightmap" ignores it.
+    pub fn set_srgb(&mut self, srgb: bool) {
+        self.srgb = srgb && !self.kind.hdr_only();
+        self.changed();
+    }
+
+    /// The "srgb" setting.
+    pub fn srgb(&self) -> bool {
+        self.srgb
+    }
+
+    /// OIDN's "cleanAux" (the aux images are noise-free): accepted and reported; temc
+    /// uses the aux images as given either way.
+    pub fn set_clean_aux(&mut self, clean: bool) {
+        self.clean_aux = clean;
+        self.changed();
+    }
+
+    /// The "cleanAux" setting.
+    pub fn clean_aux(&self) -> bool {
+        self.clean_aux
+    }
+
+    /// OIDN's "directional" ("RTLightmap" spherical-harmonics lightmaps): temc has no
+    /// directional model, so `true` is refused.
+    pub fn set_directional(&mut self, directional: bool) -> Result<(), Error> {
+        if directional {
+            return Err(Error::InvalidArgument(
+                "RTLightmap: directional lightmaps (spherical-harmonics coefficients) are not \
+                 supported by temc's colour models; set \"directional\" to false"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Quality mode: which built-in TEMC-2 model runs (see [`builtin_model`] and
+    /// [`Quality::resolve`]); ignored when user weights are set.
     pub fn set_quality(&mut self, q: Quality) {
         self.quality = q;
         self.changed();
     }
 
-    /// Memory budget in MB for one execution: tiles shrink until the estimated peak fits
-    /// it, down to the smallest tile the model allows (below that floor the budget is
-    /// exceeded: like OIDN's `maxMemoryMB`, it is approximate).
+    /// The quality set (before [`Quality::resolve`]).
+    pub fn quality(&self) -> Quality {
+        self.quality
+    }
+
+    /// Memory budget in MB for one execution: [`MaxMemory::Mb`].
     pub fn set_max_memory_mb(&mut self, mb: usize) {
-        self.max_memory_mb = mb;
+        self.set_max_memory(MaxMemory::Mb(mb));
+    }
+
+    /// Memory budget for one execution.
+    pub fn set_max_memory(&mut self, budget: MaxMemory) {
+        self.max_memory = budget;
         self.changed();
+    }
+
+    /// The memory budget.
+    pub fn max_memory(&self) -> MaxMemory {
+        self.max_memory
     }
 
     /// Pixels each tile writes per side (its core; the network sees the core plus the
@@ -482,6 +720,11 @@ impl<'a> Filter<'a> {
     pub fn set_tile_size(&mut self, pixels: usize) {
         self.tile_size = pixels;
         self.changed();
+    }
+
+    /// The tile size set (0: from the memory budget).
+    pub fn tile_size(&self) -> usize {
+        self.tile_size
     }
 
     /// Multiplies the input before PQ encoding; NaN restores automatic exposure.
@@ -497,6 +740,62 @@ impl<'a> Filter<'a> {
         }
         self.changed();
         Ok(())
+    }
+
+    /// The input scale set, NaN while automatic.
+    pub fn input_scale(&self) -> f32 {
+        self.input_scale.unwrap_or(f32::NAN)
+    }
+
+    /// Bands per pixel of the "spectral" image (at least 1).
+    pub fn set_spectral_bands(&mut self, bands: usize) -> Result<(), Error> {
+        if bands < 1 {
+            return Err(Error::InvalidArgument(format!(
+                "spectralBands must be at least 1, got {bands}"
+            )));
+        }
+        self.spectral.bands = bands;
+        self.changed();
+        Ok(())
+    }
+
+    /// Bands per pixel of the "spectral" image (0 until set).
+    pub fn spectral_bands(&self) -> usize {
+        self.spectral.bands
+    }
+
+    /// The wavelengths in nm the "spectral" bands split evenly (default 380..780, the
+    /// spectral layer of temc-render); each must be positive, and commit checks that
+    /// `max_nm` exceeds `min_nm`.
+    pub fn set_spectral_range(&mut self, min_nm: f32, max_nm: f32) -> Result<(), Error> {
+        for (name, v) in [("spectralMin", min_nm), ("spectralMax", max_nm)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::InvalidArgument(format!(
+                    "{name} must be a positive wavelength in nm, got {v}"
+                )));
+            }
+        }
+        self.spectral.min_nm = min_nm;
+        self.spectral.max_nm = max_nm;
+        self.changed();
+        Ok(())
+    }
+
+    /// The "spectral" bands' range in nm, (min, max).
+    pub fn spectral_range(&self) -> (f32, f32) {
+        (self.spectral.min_nm, self.spectral.max_nm)
+    }
+
+    /// OIDN's rules: empty images (0 pixels) are accepted, and a filter of only empty
+    /// images executes as a no-op; commit checks input and output set, formats of three
+    /// channels, equal channel counts, images of the output's size, not "hdr" with "srgb",
+    /// aux images alone only for "RT", each refused with [`Error::InvalidOperation`] and
+    /// OIDN's message, and user weights that do not load are refused the same way. On by
+    /// default for OIDN's types (and in the C ABI); temc's types refuse empty images,
+    /// check the images at execute, and run [`Self::execute_to_vec`] without an output.
+    pub fn set_oidn_checks(&mut self, on: bool) {
+        self.checked = on;
+        self.changed();
     }
 
     /// Uses a user ONNX model (with temc metadata) instead of the built-in weights.
@@ -522,121 +821,126 @@ impl<'a> Filter<'a> {
         self.monitor = None;
     }
 
-    /// Sets a boolean parameter by its OIDN name ("hdr").
-    pub fn set_bool(&mut self, name: &str, v: bool) -> Result<(), Error> {
-        match name {
-            "hdr" => self.set_hdr(v),
-            _ => {
-                return Err(Error::InvalidArgument(format!(
-                    "unknown bool parameter {name:?}"
-                )))
-            }
-        }
-        Ok(())
-    }
-
-    /// Sets an integer parameter by its OIDN name ("quality", "maxMemoryMB"), or temc's
-    /// "tileSize".
-    pub fn set_int(&mut self, name: &str, v: i32) -> Result<(), Error> {
-        match name {
-            "quality" => self.set_quality(
-                Quality::from_raw(v)
-                    .ok_or_else(|| Error::InvalidArgument(format!("unknown quality {v}")))?,
-            ),
-            "maxMemoryMB" => {
-                if v <= 0 {
-                    return Err(Error::InvalidArgument(format!(
-                        "maxMemoryMB must be positive, got {v}"
-                    )));
-                }
-                self.set_max_memory_mb(v as usize)
-            }
-            "tileSize" => {
-                if v < 0 {
-                    return Err(Error::InvalidArgument(format!(
-                        "tileSize must be >= 0, got {v}"
-                    )));
-                }
-                self.set_tile_size(v as usize)
-            }
-            _ => {
-                return Err(Error::InvalidArgument(format!(
-                    "unknown int parameter {name:?}"
-                )))
-            }
-        }
-        Ok(())
-    }
-
-    /// Sets a float parameter by its OIDN name ("inputScale").
-    pub fn set_float(&mut self, name: &str, v: f32) -> Result<(), Error> {
-        match name {
-            "inputScale" => self.set_input_scale(v),
-            _ => Err(Error::InvalidArgument(format!(
-                "unknown float parameter {name:?}"
-            ))),
-        }
-    }
-
-    /// Reads a float parameter back: "inputScale" (NaN while automatic).
-    pub fn get_float(&self, name: &str) -> Result<f32, Error> {
-        match name {
-            "inputScale" => Ok(self.input_scale.unwrap_or(f32::NAN)),
-            _ => Err(Error::InvalidArgument(format!(
-                "unknown float parameter {name:?}"
-            ))),
-        }
-    }
-
-    /// Reads a parameter back: "hdr" (0/1), "quality", "maxMemoryMB", "tileSize".
-    pub fn get_int(&self, name: &str) -> Result<i32, Error> {
-        match name {
-            "hdr" => Ok(self.hdr as i32),
-            "quality" => Ok(self.quality as i32),
-            "maxMemoryMB" => Ok(self.max_memory_mb.min(i32::MAX as usize) as i32),
-            "tileSize" => Ok(self.tile_size.min(i32::MAX as usize) as i32),
-            _ => Err(Error::InvalidArgument(format!(
-                "unknown int parameter {name:?}"
-            ))),
-        }
-    }
-
-    /// Loads the model (user weights, or the built-in one for the filter type and quality)
-    /// and checks it matches the filter type. Required after any change, before execute.
+    /// Checks the parameters and images (OIDN's checks, when on), chooses the execution
+    /// path, and for a denoise loads the model (user weights, or the built-in one for the
+    /// filter type and quality) and checks it matches the filter type. Required after any
+    /// change, before execute; a filter whose commit failed stays uncommitted.
     pub fn commit(&mut self) -> Result<(), Error> {
+        self.committed = None;
         self.device.pool()?;
+        if self.checked {
+            self.check_params()?;
+        }
+        let path = self.choose_path()?;
+        let mut bands = None;
+        if let ExecutionPath::Denoise(input) = path {
+            if input == ColorInput::Spectral {
+                bands = Some(self.band_layout()?);
+            }
+            self.stage_buffer(input)?;
+            self.load_model()?;
+        }
+        self.committed = Some(Committed { path, bands });
+        Ok(())
+    }
+
+    /// Allocates the staging buffer a converted colour input needs.
+    fn stage_buffer(&mut self, input: ColorInput) -> Result<(), Error> {
+        let source = if input == ColorInput::Spectral {
+            ImageName::Spectral
+        } else {
+            ImageName::Color
+        };
+        let n = match self.images[source.index()] {
+            Some(img) if input.staged() => img.layout.width * img.layout.height * 3,
+            _ => 0,
+        };
+        self.staged.clear();
+        self.staged
+            .try_reserve_exact(n)
+            .map_err(|_| Error::OutOfMemory(format!("colour staging of {n} floats")))?;
+        self.staged.resize(n, 0.0);
+        Ok(())
+    }
+
+    fn load_model(&mut self) -> Result<(), Error> {
+        let kind = self.kind.runs();
         let weights = match self.weights.clone() {
             Some(w) => w,
-            None => Weights::Onnx(builtin::shared(self.kind, self.quality).ok_or_else(|| {
-                Error::InvalidOperation(format!(
-                    "no built-in weights for {}: the baselines ship as files in \
-                     onnx/baselines/; set \"weights\" to a temc ONNX model",
-                    self.kind
-                ))
-            })?),
+            None => Weights::Onnx(
+                builtin::shared(kind.name(), self.quality.resolve(self.kind)).ok_or_else(|| {
+                    Error::InvalidOperation(format!(
+                        "no built-in weights for {}: the baselines ship as files in \
+                             onnx/baselines/; set \"weights\" to a temc ONNX model",
+                        self.kind
+                    ))
+                })?,
+            ),
         };
-        let (model, bytes) = match weights {
-            Weights::Parsed(m) => (m, None),
-            Weights::Onnx(w) => match (&self.committed, &self.loaded_from) {
-                (Some(m), Some(prev)) if Arc::ptr_eq(prev, &w) => (m.clone(), Some(w)),
-                _ => (Arc::new(Model::from_bytes(&w)?), Some(w)),
+        let user_onnx = matches!(self.weights, Some(Weights::Onnx(_)));
+        let bytes = match &weights {
+            Weights::Onnx(w) => Some(w.clone()),
+            Weights::Parsed(_) => None,
+        };
+        let model = self.parse(weights).map_err(|e| match e {
+            // As OIDN refuses a weights blob it cannot use: at commit, with
+            // INVALID_OPERATION (core/tza.cpp), whatever the parser's reason.
+            Error::Model(_) | Error::InvalidArgument(_) if self.checked && user_onnx => {
+                Error::InvalidOperation(format!("invalid or corrupted weights blob: {e}"))
+            }
+            e => e,
+        })?;
+        self.model = Some(model);
+        self.loaded_from = bytes;
+        Ok(())
+    }
+
+    /// The model of `weights` (the loaded one again if they are the bytes it came from),
+    /// checked against the filter type.
+    fn parse(&self, weights: Weights) -> Result<Arc<Model>, Error> {
+        let model = match weights {
+            Weights::Parsed(m) => m,
+            Weights::Onnx(w) => match (&self.model, &self.loaded_from) {
+                (Some(m), Some(prev)) if Arc::ptr_eq(prev, &w) => m.clone(),
+                _ => Arc::new(Model::from_bytes(&w)?),
             },
         };
         let arch = &model.info().architecture;
-        if !arch.eq_ignore_ascii_case(self.kind) {
+        if !arch.eq_ignore_ascii_case(self.kind.runs().name()) {
             return Err(Error::InvalidArgument(format!(
                 "the weights are a {arch:?} model, but the filter type is {}",
                 self.kind
             )));
         }
-        self.committed = Some(model);
-        self.loaded_from = bytes;
-        Ok(())
+        Ok(model)
     }
 
     /// The committed model, if any.
     pub fn model(&self) -> Option<&Arc<Model>> {
-        self.committed.as_ref()
+        self.model.as_ref()
+    }
+
+    /// The path the committed filter's execution takes, if committed.
+    pub fn execution_path(&self) -> Option<ExecutionPath> {
+        self.committed.as_ref().map(|c| c.path)
+    }
+
+    /// The committed path's pixel alignment (OIDN's "alignment"): the model's, 1 for a
+    /// prefilter, 0 before commit.
+    pub fn alignment(&self) -> usize {
+        match self.execution_path() {
+            Some(ExecutionPath::Prefilter(_)) => 1,
+            _ => self.model.as_ref().map_or(0, |m| m.info().alignment),
+        }
+    }
+
+    /// The committed path's tile overlap in pixels (OIDN's "overlap"): the model's, the
+    /// prefilter's reach, 0 before commit.
+    pub fn overlap(&self) -> usize {
+        match self.execution_path() {
+            Some(ExecutionPath::Prefilter(_)) => crate::prefilter::REACH,
+            _ => self.model.as_ref().map_or(0, |m| m.info().tile_overlap),
+        }
     }
 
     /// Denoises `color` (with the aux images set) into `output`. On any error, including
@@ -665,19 +969,54 @@ impl<'a> Filter<'a> {
     }
 
     fn run(&mut self) -> Result<(ExecuteStats, Option<Vec<f32>>), Error> {
-        let model = self.committed.clone().ok_or_else(|| {
+        let committed = self.committed.as_ref().ok_or_else(|| {
+            Error::InvalidOperation(
+                "the filter is not committed (call commit after changes)".into(),
+            )
+        })?;
+        let output = self.images[ImageName::Output.index()];
+        let input = match committed.path {
+            ExecutionPath::Empty => {
+                return Ok((ExecuteStats::default(), output.is_none().then(Vec::new)))
+            }
+            ExecutionPath::Prefilter(kind) => {
+                let name = match kind {
+                    crate::prefilter::AuxKind::Albedo => ImageName::Albedo,
+                    crate::prefilter::AuxKind::Normal => ImageName::Normal,
+                };
+                let src = self.images[name.index()].ok_or_else(|| {
+                    Error::InvalidOperation(format!("image {:?} is not set", name.as_str()))
+                })?;
+                let result = execute::prefilter(&src, output.as_ref(), kind);
+                return Ok((ExecuteStats::default(), result));
+            }
+            ExecutionPath::Denoise(input) => input,
+        };
+        let model = self.model.clone().ok_or_else(|| {
             Error::InvalidOperation(
                 "the filter is not committed (call commit after changes)".into(),
             )
         })?;
         let pool = self.device.pool()?;
+        let tile_size = match (self.tile_size, self.max_memory) {
+            (0, MaxMemory::Least) => {
+                // Cores of 4 overlaps: several tiles on any image OIDN would tile, each
+                // repeating little of its neighbours' work (the smallest tile, one
+                // alignment step inside the overlap, would repeat it some 100-fold).
+                (4 * model.info().tile_overlap).max(64)
+            }
+            (t, _) => t,
+        };
         let job = execute::Job {
             model: &model,
             images: self.images,
+            color_input: input,
+            bands: committed.bands.as_ref(),
+            staged: &mut self.staged,
             hdr: self.hdr,
             input_scale: self.input_scale,
-            max_memory_bytes: self.max_memory_mb.saturating_mul(1 << 20),
-            tile_size: self.tile_size,
+            max_memory_bytes: self.max_memory.bytes(),
+            tile_size,
             verbose: self.device.verbose(),
         };
         execute::run(job, &pool, self.monitor.as_mut())
