@@ -12,6 +12,8 @@
 //! a row live in one reusable buffer, and `exp` is a branch-free polynomial that LLVM
 //! vectorises (std `expf` is a libm call per tap and dominated the run time).
 
+use ndarray::{Array2, Array3, ArrayView2, ArrayView3, ArrayViewMut2, Zip};
+
 use crate::color::{LINEAR_MAX, LUMA_WEIGHTS};
 use crate::Error;
 
@@ -201,21 +203,14 @@ fn validate(
 
 /// The 2x2 mean of each of `planes` planes of `h` x `w` (D of the spec; keeps the mean).
 fn downsample(x: &[f32], planes: usize, h: usize, w: usize) -> Vec<f32> {
-    let (hc, wc) = (h / 2, w / 2);
-    let mut out = vec![0.0; planes * hc * wc];
-    for (src, dst) in x.chunks_exact(h * w).zip(out.chunks_exact_mut(hc * wc)) {
-        for (rows, drow) in src.chunks_exact(2 * w).zip(dst.chunks_exact_mut(wc)) {
-            let (r0, r1) = rows.split_at(w);
-            for ((o, a), b) in drow
-                .iter_mut()
-                .zip(r0.chunks_exact(2))
-                .zip(r1.chunks_exact(2))
-            {
-                *o = 0.25 * ((a[0] + a[1]) + (b[0] + b[1]));
-            }
-        }
-    }
-    out
+    let x = ArrayView3::from_shape((planes, h, w), x).expect("planes of h x w");
+    let mut out = Array3::zeros((planes, h / 2, w / 2));
+    Zip::from(&mut out)
+        .and(x.exact_chunks((1, 2, 2)))
+        .for_each(|o, q| {
+            *o = 0.25 * ((q[[0, 0, 0]] + q[[0, 0, 1]]) + (q[[0, 1, 0]] + q[[0, 1, 1]]))
+        });
+    out.into_raw_vec_and_offset().0
 }
 
 /// The fixed range term's guide of one level: log2(opened luminance x `exposure` +
@@ -507,30 +502,21 @@ impl Scratch {
     }
 }
 
-/// In place: `fine += sigmoid(blend) * (U(coarse) - U(D(fine)))` (step 4 of the spec).
+/// In place: `fine += sigmoid(blend) * U(coarse - D(fine))` (step 4 of the spec; U repeats
+/// a coarse pixel over its 2x2 block).
 fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize) {
-    let wc = w / 2;
+    let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
+        .expect("one coarse plane");
+    let coarse = ArrayView2::from_shape(detail.dim(), coarse).expect("a coarse plane");
+    Zip::from(&mut detail)
+        .and(coarse)
+        .for_each(|d, &c| *d = c - *d);
     let blend: Vec<f32> = blend.iter().map(|&b| sigmoid(b)).collect(); // one vectorised pass
-    for ((rows, brows), crow) in fine
-        .chunks_exact_mut(2 * w)
-        .zip(blend.chunks_exact(2 * w))
-        .zip(coarse.chunks_exact(wc))
-    {
-        let (r0, r1) = rows.split_at_mut(w);
-        let (b0, b1) = brows.split_at(w);
-        let blocks = r0.chunks_exact_mut(2).zip(r1.chunks_exact_mut(2));
-        for (((a, b), (ba, bb)), &c) in blocks
-            .zip(b0.chunks_exact(2).zip(b1.chunks_exact(2)))
-            .zip(crow)
-        {
-            let diff = c - 0.25 * ((a[0] + a[1]) + (b[0] + b[1]));
-            a[0] += ba[0] * diff;
-            a[1] += ba[1] * diff;
-            b[0] += bb[0] * diff;
-            b[1] += bb[1] * diff;
-        }
-    }
-    debug_assert_eq!(fine.len(), h * w);
+    let blend = ArrayView2::from_shape((h, w), &blend).expect("a blend per fine pixel");
+    let mut fine = ArrayViewMut2::from_shape((h, w), fine).expect("a fine plane");
+    Zip::indexed(&mut fine)
+        .and(blend)
+        .for_each(|(y, x), f, &b| *f += b * detail[[y / 2, x / 2]]);
 }
 
 /// Steps 5-7: the chroma filter's colour at the luma filter's luminance, remodulated,
