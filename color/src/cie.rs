@@ -1,12 +1,11 @@
 //! The CIE 1931 2-degree standard observer, and CIE XYZ -> linear sRGB.
 //!
-//! The colour matching functions are the multi-lobe piecewise-Gaussian fit of Wyman, Sloan
-//! and Shirley, "Simple Analytic Approximations to the CIE XYZ Color Matching Functions",
-//! JCGT 2(2), 2013. Its error against the tabulated CIE 1931 2-degree observer (1 nm,
-//! 360..830 nm), measured by `training/tests/test_cmf.py`: at most 0.015, 0.0076 and 0.024
-//! absolute for x-bar, y-bar and z-bar (whose peaks are about 1.06, 1.0 and 1.78);
-//! integrated over a flat, a ramp, a 3000 K blackbody and a green band spectrum, XYZ is
-//! within 0.33 % of Y of the tabulated result.
+//! [`cmf_tabulated`] (and its `_f32` and `_integral` companions) interpolates the CIE's own
+//! 1 nm table ([`crate::cie1931`]). Every spectrum-to-XYZ conversion uses it: temc-render's
+//! film and the rest of the tracer, the denoiser's spectral input
+//! (`temc::color::SpectralBands`, docs/contracts.md §1), and training's numpy copy
+//! (`training/temc_train/color.py`, which reads the numbers from `cie1931.rs` itself), so a
+//! render's colour and its spectral bands converted by temc agree.
 
 /// The visible range the normalisation integrates over, in nm.
 pub const VISIBLE_NM: (f64, f64) = (360.0, 830.0);
@@ -18,69 +17,48 @@ pub const XYZ_TO_SRGB: [[f64; 3]; 3] = [
     [0.0557, -0.2040, 1.0570],
 ];
 
-/// A lobe of the fit: a Gaussian with different widths left and right of its mean.
-fn lobe(lambda: f64, mean: f64, sigma_left: f64, sigma_right: f64) -> f64 {
-    let s = if lambda < mean {
-        sigma_left
-    } else {
-        sigma_right
-    };
-    let t = (lambda - mean) / s;
-    (-0.5 * t * t).exp()
+/// The tabulated CIE 1931 2-degree CMFs at `lambda` nm, linearly interpolated between the
+/// 1 nm rows; 0 outside 360..830 nm, where the CIE table ends. No allocation: the film
+/// calls this for every lane of every path.
+pub fn cmf_tabulated_f32(lambda: f32) -> [f32; 3] {
+    cmf_tabulated(lambda as f64).map(|v| v as f32)
 }
 
-/// The CIE 1931 2-degree colour matching functions (x-bar, y-bar, z-bar) at `lambda` nm.
-pub fn cmf(lambda: f64) -> [f64; 3] {
-    let x = 1.056 * lobe(lambda, 599.8, 37.9, 31.0) + 0.362 * lobe(lambda, 442.0, 16.0, 26.7)
-        - 0.065 * lobe(lambda, 501.1, 20.4, 26.2);
-    let y = 0.821 * lobe(lambda, 568.8, 46.9, 40.5) + 0.286 * lobe(lambda, 530.9, 16.3, 31.1);
-    let z = 1.217 * lobe(lambda, 437.0, 11.8, 36.0) + 0.681 * lobe(lambda, 459.0, 26.0, 13.8);
-    [x, y, z]
-}
-
-/// Step of [`cmf_fast`]'s table, nm.
-const TABLE_STEP: f32 = 0.1;
-
-/// The CMFs at `lambda` nm (clamped to [`VISIBLE_NM`]) from a table of [`cmf`] every
-/// 0.1 nm, linearly interpolated: within 2e-5 of the fit (a test checks) at a fraction of
-/// its cost (eight exponentials), for the renderer's film, which converts every path.
-pub fn cmf_fast(lambda: f32) -> [f32; 3] {
-    static TABLE: std::sync::OnceLock<Vec<[f32; 3]>> = std::sync::OnceLock::new();
-    let t = TABLE.get_or_init(|| {
-        let n = ((VISIBLE_NM.1 - VISIBLE_NM.0) / TABLE_STEP as f64).round() as usize;
-        (0..=n)
-            .map(|i| cmf(VISIBLE_NM.0 + i as f64 * TABLE_STEP as f64).map(|v| v as f32))
-            .collect()
-    });
-    let x = ((lambda - VISIBLE_NM.0 as f32) / TABLE_STEP).clamp(0.0, (t.len() - 1) as f32);
+/// [`cmf_tabulated_f32`] in f64, for tables built once (normalisations, the RGB uplift).
+pub fn cmf_tabulated(lambda: f64) -> [f64; 3] {
+    let t = &crate::cie1931::CIE_1931_2DEG;
+    let x = lambda - crate::cie1931::FIRST_NM;
+    // `contains` is false for NaN too, which must not index the table.
+    if !(0.0..=(t.len() - 1) as f64).contains(&x) {
+        return [0.0; 3];
+    }
     let i = (x as usize).min(t.len() - 2);
-    let f = x - i as f32;
+    let f = x - i as f64;
     std::array::from_fn(|k| t[i][k] + (t[i + 1][k] - t[i][k]) * f)
 }
 
-/// Integral of the CMFs over [a, b] nm, composite Simpson with steps of at most 0.5 nm
-/// (the fit is smooth except for the kinks at each lobe's mean, which this resolves well).
-pub fn cmf_integral(a: f64, b: f64) -> [f64; 3] {
-    if b <= a {
-        return [0.0; 3];
-    }
-    let n = (((b - a) / 0.5).ceil() as usize).max(1) * 2;
-    let h = (b - a) / n as f64;
+/// Exact integral over [a, b] nm of the piecewise-linear [`cmf_tabulated`] (trapezoids
+/// between the table's rows, clipped to [a, b]). Over 360..830 nm y-bar gives 106.8569,
+/// the CIE sum less half its two (tiny) end rows.
+pub fn cmf_tabulated_integral(a: f64, b: f64) -> [f64; 3] {
+    let (lo, hi) = (a.max(VISIBLE_NM.0), b.min(VISIBLE_NM.1));
     let mut acc = [0.0; 3];
-    for i in 0..=n {
-        let w = if i == 0 || i == n {
-            1.0
-        } else if i % 2 == 1 {
-            4.0
-        } else {
-            2.0
-        };
-        let c = cmf(a + i as f64 * h);
-        for k in 0..3 {
-            acc[k] += w * c[k];
-        }
+    if hi <= lo {
+        return acc;
     }
-    acc.map(|v| v * h / 3.0)
+    // Knots: the ends, and every whole nm strictly between them.
+    let mut x0 = lo;
+    let mut knot = lo.floor() + 1.0;
+    while x0 < hi {
+        let x1 = knot.min(hi);
+        let (c0, c1) = (cmf_tabulated(x0), cmf_tabulated(x1));
+        for k in 0..3 {
+            acc[k] += 0.5 * (c0[k] + c1[k]) * (x1 - x0);
+        }
+        x0 = x1;
+        knot += 1.0;
+    }
+    acc
 }
 
 /// CIE XYZ -> linear sRGB with [`XYZ_TO_SRGB`].
@@ -93,35 +71,57 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_table_follows_the_fit() {
-        let mut worst = 0.0f64;
-        for i in 0..47_000 {
-            let l = 360.0 + i as f64 * 0.01;
-            let (a, b) = (cmf(l), cmf_fast(l as f32));
-            for k in 0..3 {
-                worst = worst.max((a[k] - b[k] as f64).abs());
+    fn tabulated_observer_has_the_cie_values() {
+        // CIE 1931 2-degree rows (CIE 018:2019): (nm, x-bar, y-bar, z-bar).
+        let rows = [
+            (450.0, 0.3362, 0.038, 1.77211),
+            (500.0, 0.0049, 0.323, 0.272),
+            (555.0, 0.5120501, 1.0, 0.005749999),
+            (600.0, 1.0622, 0.631, 0.0008),
+            (650.0, 0.2835, 0.107, 0.0),
+        ];
+        for (l, x, y, z) in rows {
+            let c = cmf_tabulated(l);
+            let cf = cmf_tabulated_f32(l as f32);
+            for (k, v) in [x, y, z].into_iter().enumerate() {
+                assert!((c[k] - v).abs() < 1e-9, "{l} nm: {c:?}");
+                assert!((cf[k] as f64 - v).abs() < 1e-6, "{l} nm: {cf:?}");
             }
         }
-        assert!(worst < 2e-5, "{worst}");
-        assert_eq!(cmf_fast(100.0), cmf_fast(360.0));
+        // Halfway between rows: the mean of the two (linear interpolation).
+        let (a, b, m) = (
+            cmf_tabulated(600.0),
+            cmf_tabulated(601.0),
+            cmf_tabulated(600.5),
+        );
+        assert!((m[0] - 0.5 * (a[0] + b[0])).abs() < 1e-12);
+        assert_eq!(cmf_tabulated(359.0), [0.0; 3]);
+        assert_eq!(cmf_tabulated(f64::NAN), [0.0; 3]);
+        assert_eq!(cmf_tabulated_f32(831.0), [0.0; 3]);
     }
 
     #[test]
-    fn fit_has_the_known_peaks() {
-        // y-bar peaks near 555 nm at about 1; x-bar's main lobe near 600 nm; z-bar near 445.
-        let y555 = cmf(555.0)[1];
-        assert!((y555 - 1.0).abs() < 0.02, "{y555}");
-        assert!(cmf(600.0)[0] > 1.0 && cmf(600.0)[0] < 1.1);
-        assert!(cmf(445.0)[2] > 1.7 && cmf(445.0)[2] < 1.8);
-        assert!(cmf(830.0).iter().all(|v| v.abs() < 1e-3));
-    }
-
-    #[test]
-    fn integrals_match_the_cie_totals() {
-        // The tabulated CIE 1931 CMFs each integrate to about 106.86 over 360..830 nm.
-        let t = cmf_integral(360.0, 830.0);
-        for v in t {
-            assert!((v - 106.86).abs() / 106.86 < 0.01, "{t:?}");
+    fn tabulated_integrals_match_the_cie_sums() {
+        // The sum of the 1 nm rows of y-bar: 106.85692 (pbrt-v4's CIE_Y_integral,
+        // 106.856895, is the same sum in single precision).
+        let sum: f64 = (360..=830).map(|l| cmf_tabulated(l as f64)[1]).sum();
+        assert!((sum - 106.85692).abs() < 1e-5, "{sum}");
+        // The trapezoid integral differs from the sum by half the end rows only.
+        let ends = 0.5 * (cmf_tabulated(360.0)[1] + cmf_tabulated(830.0)[1]);
+        let t = cmf_tabulated_integral(360.0, 830.0);
+        assert!((t[1] - (sum - ends)).abs() < 1e-9, "{t:?}");
+        assert!(
+            (t[0] - 106.865).abs() < 0.01 && (t[2] - 106.892).abs() < 0.01,
+            "{t:?}"
+        );
+        // Pieces add up, across fractional ends too.
+        let parts = [360.0, 402.3, 402.7, 555.0, 700.25, 830.0];
+        let mut acc = [0.0; 3];
+        for w in parts.windows(2) {
+            let p = cmf_tabulated_integral(w[0], w[1]);
+            (0..3).for_each(|k| acc[k] += p[k]);
         }
+        (0..3).for_each(|k| assert!((acc[k] - t[k]).abs() < 1e-9));
+        assert_eq!(cmf_tabulated_integral(500.0, 400.0), [0.0; 3]);
     }
 }

@@ -1,8 +1,9 @@
 //! temc-render: a spectral Monte Carlo path tracer for temc's data sets and demo scenes.
 //!
-//! Paths carry four hero wavelengths; the film converts them to CIE XYZ with the same
-//! colour matching functions as the denoiser (the `temc-color` crate, which temc
-//! re-exports as `temc::color`), so training data and inference agree. The renderer
+//! Paths carry four hero wavelengths; the film converts them to CIE XYZ with the CIE 1931
+//! observer's own table (`temc_color::cie::cmf_tabulated_f32`, from the `temc-color`
+//! crate the denoiser shares; the denoiser's spectral input still uses the crate's
+//! analytic fit, see docs/render.md). The renderer
 //! inspects each scene ([`scene::Scene::features`]) and runs the cheapest correct kernel
 //! ([`integrator::Kernel`]).
 //!

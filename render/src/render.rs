@@ -22,7 +22,8 @@ pub struct Settings {
     pub spp: u32,
     /// Seed: the same seed gives the same image.
     pub seed: u64,
-    /// Longest path, in bounces.
+    /// Longest path, in scattering events (pbrt-v4's convention: 0 = emitters seen
+    /// directly, 1 = direct lighting).
     pub max_depth: u32,
     /// The kernel to run; `None`: the cheapest the scene allows.
     pub kernel: Option<Kernel>,
@@ -93,7 +94,7 @@ pub fn render_progressive(
     } else {
         LambdaSampler::for_emitters(&scene.emitter_spectra())
     };
-    let y_norm = temc_color::cie::cmf_integral(360.0, 830.0)[1];
+    let y_norm = temc_color::cie::cmf_tabulated_integral(360.0, 830.0)[1];
     let camera = scene.camera.pinhole(s.width, s.height);
     let done = AtomicUsize::new(0);
     let rows: Vec<Option<Vec<Vec<Pixel>>>> = (0..s.height)

@@ -3,13 +3,17 @@
 //! A spectral renderer can hand temc its per-band radiance instead of RGB, so that the
 //! conversion to colour happens once, here, with the same numbers as in training.
 //!
-//! The CIE 1931 observer itself (the colour matching functions, their integrals, XYZ ->
-//! linear sRGB) lives in the `temc-color` crate, which temc-render shares; it is
-//! re-exported here, so `temc::color::spectral::cmf` and the rest keep their paths.
+//! The CIE 1931 2-degree observer itself (the CIE's 1 nm table, its exact integrals, XYZ ->
+//! linear sRGB) lives in the `temc-color` crate, which temc-render shares: the tracer's film
+//! and these bands use the same table, so a render's colour and its bands converted here
+//! agree (up to what averaging a spectrum over a band loses). It is re-exported here.
 
 use crate::Error;
 
-pub use temc_color::cie::{cmf, cmf_integral, xyz_to_linear_srgb, VISIBLE_NM, XYZ_TO_SRGB};
+pub use temc_color::cie::{
+    cmf_tabulated, cmf_tabulated_f32, cmf_tabulated_integral, xyz_to_linear_srgb, VISIBLE_NM,
+    XYZ_TO_SRGB,
+};
 
 /// Converts spectra sampled in fixed bands to linear sRGB; built once per band layout.
 ///
@@ -33,7 +37,9 @@ pub struct SpectralBands {
 impl SpectralBands {
     /// Builds the band-to-XYZ weights for `edges` (N + 1 strictly increasing wavelengths in
     /// nm, N >= 1). Each band's value is its mean spectral radiance; XYZ is normalised so a
-    /// flat spectrum of 1.0 over 360..830 nm has Y = 1.
+    /// flat spectrum of 1.0 over 360..830 nm has Y = 1. The weights are exact integrals of
+    /// the tabulated observer over each band (0 outside 360..830 nm, where the table ends),
+    /// computed once here.
     pub fn new(edges: &[f32]) -> Result<Self, Error> {
         if edges.len() < 2 {
             return Err(Error::InvalidArgument(format!(
@@ -51,10 +57,10 @@ impl SpectralBands {
                 "spectral band edges must be strictly increasing".into(),
             ));
         }
-        let y_norm = cmf_integral(VISIBLE_NM.0, VISIBLE_NM.1)[1];
+        let y_norm = cmf_tabulated_integral(VISIBLE_NM.0, VISIBLE_NM.1)[1];
         let weights = edges
             .windows(2)
-            .map(|w| cmf_integral(w[0] as f64, w[1] as f64).map(|v| v / y_norm))
+            .map(|w| cmf_tabulated_integral(w[0] as f64, w[1] as f64).map(|v| v / y_norm))
             .collect();
         Ok(Self {
             edges: edges.to_vec(),
@@ -142,6 +148,64 @@ mod tests {
             "{rgb:?}"
         );
         assert!((rgb[1] - 2.0 * 0.95).abs() < 0.1, "{rgb:?}");
+    }
+
+    /// XYZ of `s` as the tracer's film sees it: the expectation of its per-wavelength
+    /// estimate, the integral of s(λ) `cmf_tabulated_f32`(λ) over 360..830 nm (midpoint
+    /// rule, 0.01 nm), over the same Y normalisation (render/src/render.rs).
+    fn tracer_xyz(s: impl Fn(f64) -> f64) -> [f64; 3] {
+        let h = 0.01;
+        let mut acc = [0.0; 3];
+        for i in 0..47_000 {
+            let l = 360.0 + (i as f64 + 0.5) * h;
+            let c = cmf_tabulated_f32(l as f32);
+            (0..3).for_each(|k| acc[k] += c[k] as f64 * s(l) * h);
+        }
+        let y_norm = cmf_tabulated_integral(360.0, 830.0)[1];
+        acc.map(|v| v / y_norm)
+    }
+
+    fn assert_close(a: [f64; 3], b: [f64; 3], what: &str) {
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for k in 0..3 {
+            assert!(
+                (a[k] - b[k]).abs() <= 1e-4 * scale,
+                "{what}: {a:?} vs {b:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn bands_convert_a_spectrum_as_the_tracer_does() {
+        // A narrow line: one band exactly covering it.
+        let line = |l: f64| {
+            if (549.5..550.5).contains(&l) {
+                3.0
+            } else {
+                0.0
+            }
+        };
+        let b = SpectralBands::new(&[549.5, 550.5]).unwrap();
+        assert_close(b.to_xyz(&[3.0]), tracer_xyz(line), "line at 550 nm");
+        // A smooth spectrum (3000 K blackbody, scaled) through 1 nm bands holding its means.
+        let bb = |l: f64| 1e17 / (l.powi(5) * ((1.4388e7 / (l * 3000.0)).exp() - 1.0));
+        let edges: Vec<f32> = (360..=830).map(|l| l as f32).collect();
+        let means: Vec<f32> = edges
+            .windows(2)
+            .map(|w| {
+                let n = 100;
+                let h = (w[1] - w[0]) as f64 / n as f64;
+                ((0..n)
+                    .map(|i| bb(w[0] as f64 + (i as f64 + 0.5) * h))
+                    .sum::<f64>()
+                    / n as f64) as f32
+            })
+            .collect();
+        let b = SpectralBands::new(&edges).unwrap();
+        assert_close(b.to_xyz(&means), tracer_xyz(bb), "3000 K blackbody");
+        // The whole range: a flat spectrum has Y = 1 on both sides.
+        let flat = tracer_xyz(|_| 1.0);
+        assert!((flat[1] - 1.0).abs() < 1e-6, "{flat:?}");
     }
 
     #[test]

@@ -5,6 +5,9 @@ against the vectors the Rust code writes, to 1e-5. Arrays hold pixels on the las
 (..., 3); arithmetic is float64, results float32 like the network's tensors.
 """
 
+import re
+from pathlib import Path
+
 import numpy as np
 
 LINEAR_MAX = 65504.0
@@ -175,37 +178,72 @@ def aux_channels(albedo_img, normal_img, depth_img):
 
 # --- spectra -------------------------------------------------------------------------
 
-def _lobe(lam, mean, s1, s2):
-    t = (lam - mean) / np.where(lam < mean, s1, s2)
-    return np.exp(-0.5 * t * t)
+# The CIE 1931 2-degree observer's 1 nm table has one home, the Rust source
+# color/src/cie1931.rs (a const array the tracer's film reads per path); it is parsed here
+# at import so Python converts spectra with the very same numbers.
+CIE1931_RS = Path(__file__).resolve().parents[2] / "color" / "src" / "cie1931.rs"
+_ROW = re.compile(r"^\s*\[\s*([^,\]]+),\s*([^,\]]+),\s*([^,\]]+)\s*\],\s*//\s*(\d+)\s*$")
 
 
-def cmf(lam):
-    """CIE 1931 2-degree CMFs, Wyman-Sloan-Shirley 2013 multi-lobe fit; returns [..., 3]."""
-    lam = np.asarray(lam, np.float64)
-    x = 1.056 * _lobe(lam, 599.8, 37.9, 31.0) + 0.362 * _lobe(lam, 442.0, 16.0, 26.7) \
-        - 0.065 * _lobe(lam, 501.1, 20.4, 26.2)
-    y = 0.821 * _lobe(lam, 568.8, 46.9, 40.5) + 0.286 * _lobe(lam, 530.9, 16.3, 31.1)
-    z = 1.217 * _lobe(lam, 437.0, 11.8, 36.0) + 0.681 * _lobe(lam, 459.0, 26.0, 13.8)
-    return np.stack([x, y, z], -1)
+def parse_cie1931_rs(text):
+    """(first nm, [n, 3] float64) from the text of color/src/cie1931.rs: `FIRST_NM` and the
+    rows `[x, y, z], // nm` of `CIE_1931_2DEG`, whose declared length, 1 nm steps and
+    first wavelength are checked. Raises ValueError on anything else."""
+    first = re.search(r"pub const FIRST_NM: f64 = ([0-9.]+);", text)
+    decl = re.search(r"pub const CIE_1931_2DEG: \[\[f64; 3\]; (\d+)\] = \[(.*?)\n\];", text, re.S)
+    if not first or not decl:
+        raise ValueError("cie1931.rs: FIRST_NM or CIE_1931_2DEG not found")
+    rows, nms = [], []
+    for line in decl.group(2).splitlines():
+        if not line.strip():
+            continue
+        m = _ROW.match(line)
+        if not m:
+            raise ValueError(f"cie1931.rs: unexpected line {line!r}")
+        rows.append([float(m.group(k).replace("_", "")) for k in (1, 2, 3)])
+        nms.append(int(m.group(4)))
+    first_nm = float(first.group(1))
+    n = int(decl.group(1))
+    if len(rows) != n or nms != list(range(int(first_nm), int(first_nm) + n)):
+        raise ValueError(f"cie1931.rs: {len(rows)} rows for {n} declared, or not 1 nm steps "
+                         f"from {first_nm} nm")
+    return first_nm, np.array(rows, np.float64)
 
 
-def cmf_integral(a, b):
-    """Composite Simpson, steps of at most 0.5 nm (as the core)."""
-    if b <= a:
+CIE_FIRST_NM, CIE_1931_2DEG = parse_cie1931_rs(CIE1931_RS.read_text())
+VISIBLE_NM = (CIE_FIRST_NM, CIE_FIRST_NM + len(CIE_1931_2DEG) - 1)
+
+
+def cmf_tabulated(lam):
+    """CIE 1931 2-degree CMFs from the CIE's table, linearly interpolated, 0 outside
+    360..830 nm; [..., 3]. Same arithmetic as color/src/cie.rs `cmf_tabulated`."""
+    x = np.asarray(lam, np.float64) - CIE_FIRST_NM
+    t = CIE_1931_2DEG
+    inside = (x >= 0) & (x <= len(t) - 1)
+    xc = np.where(inside, x, 0.0)
+    i = np.minimum(xc.astype(np.int64), len(t) - 2)
+    f = (xc - i)[..., None]
+    v = t[i] + (t[i + 1] - t[i]) * f
+    return np.where(inside[..., None], v, 0.0)
+
+
+def cmf_tabulated_integral(a, b):
+    """Exact integral over [a, b] nm of the piecewise-linear `cmf_tabulated` (trapezoids
+    between whole nm, clipped to [a, b]), as the core computes it."""
+    lo, hi = max(a, VISIBLE_NM[0]), min(b, VISIBLE_NM[1])
+    if hi <= lo:
         return np.zeros(3)
-    n = max(int(np.ceil((b - a) / 0.5)), 1) * 2
-    lam = a + (b - a) * np.arange(n + 1) / n
-    w = np.where(np.arange(n + 1) % 2 == 1, 4.0, 2.0)
-    w[0] = w[-1] = 1.0
-    return (cmf(lam) * w[:, None]).sum(0) * (b - a) / n / 3.0
+    knots = np.concatenate([[lo], np.arange(np.floor(lo) + 1.0, hi), [hi]])
+    c = cmf_tabulated(knots)
+    return (0.5 * (c[:-1] + c[1:]) * np.diff(knots)[:, None]).sum(0)
 
 
 def band_weights(edges):
     """Per band, the XYZ a unit value contributes (Y of a flat unit spectrum = 1)."""
     edges = np.asarray(edges, np.float32).astype(np.float64)
-    y_norm = cmf_integral(360.0, 830.0)[1]
-    return np.stack([cmf_integral(a, b) / y_norm for a, b in zip(edges[:-1], edges[1:])])
+    y_norm = cmf_tabulated_integral(*VISIBLE_NM)[1]
+    return np.stack([cmf_tabulated_integral(a, b) / y_norm
+                     for a, b in zip(edges[:-1], edges[1:])])
 
 
 def spectral_to_xyz(values, edges):

@@ -6,8 +6,8 @@
 //! camera eye X Y Z target X Y Z fov DEGREES
 //! environment SPECTRUM [scale S]
 //! material NAME diffuse reflectance REFL
-//! material NAME conductor (metal Au|Ag|Cu|Al | eta SPECTRUM k SPECTRUM) [roughness STEX]
-//! material NAME dielectric (ior N | ior SPECTRUM | cauchy A B | sellmeier bk7|sf11 | sellmeier B1 B2 B3 C1 C2 C3) [roughness STEX]
+//! material NAME conductor (metal Au|Ag|Cu|Al | eta SPECTRUM k SPECTRUM) [roughness STEX] [distribution DIST]
+//! material NAME dielectric (ior N | ior SPECTRUM | cauchy A B | sellmeier bk7|sf11 | sellmeier B1 B2 B3 C1 C2 C3) [roughness STEX] [distribution DIST]
 //! material NAME plastic reflectance REFL [ior N] [roughness STEX]
 //! material NAME emitter SPECTRUM [scale S] [two-sided]
 //! sphere center X Y Z radius R material NAME
@@ -19,7 +19,8 @@
 //!
 //! REFL     = TEX | spectrum SPECTRUM            (a measured reflectance, values in [0, 1])
 //! TEX      = rgb R G B | PATTERN R G B R G B FREQ
-//! STEX     = VALUE | PATTERN A B FREQ          (GGX alpha; 0 is smooth)
+//! STEX     = VALUE | PATTERN A B FREQ          (the microfacet alpha; 0 is smooth)
+//! DIST     = ggx | beckmann                    (microfacet distribution; default ggx)
 //! PATTERN  = checker | stripes | noise | fine
 //! SPECTRUM = constant V | blackbody KELVIN | d65 | fluorescent | laser NM [WIDTH_NM] | rgb R G B
 //!          | table NM V [NM V ...] | csv PATH.csv
@@ -52,6 +53,7 @@ use crate::description::obj;
 use crate::geometry::shape::{boxed, prism, rotate_y, torus, Prim};
 use crate::geometry::vec3::V3;
 use crate::materials::ior::{Ior, BK7, SF11};
+use crate::materials::scattering::Distribution;
 use crate::materials::texture::{Pattern, Texture};
 use crate::materials::{metal, metal_albedo, Material, Metal, Reflectance};
 use crate::scene::Scene;
@@ -532,6 +534,7 @@ impl Builder<'_> {
 struct MaterialKeys {
     reflectance: Option<Reflectance>,
     roughness: Texture,
+    distribution: Distribution,
     ior: Option<Ior>,
     metal: Option<Metal>,
     eta: Option<Spectrum>,
@@ -546,6 +549,7 @@ impl Default for MaterialKeys {
         MaterialKeys {
             reflectance: None,
             roughness: Texture::scalar(0.0),
+            distribution: Distribution::Ggx,
             ior: None,
             metal: None,
             eta: None,
@@ -564,6 +568,13 @@ impl MaterialKeys {
             ("diffuse" | "plastic", "reflectance") => self.reflectance = Some(c.reflectance()?),
             ("conductor" | "dielectric" | "plastic", "roughness") => {
                 self.roughness = c.scalar_texture(0.0, 1.0)?
+            }
+            ("conductor" | "dielectric", "distribution") => {
+                self.distribution = match c.word("a distribution")? {
+                    "ggx" => Distribution::Ggx,
+                    "beckmann" => Distribution::Beckmann,
+                    d => return Err(format!("unknown distribution '{d}' (ggx, beckmann)")),
+                }
             }
             ("conductor", "metal") => {
                 let n = c.word("a metal")?;
@@ -623,6 +634,7 @@ impl MaterialKeys {
                     albedo: metal_albedo(&m),
                     metal: m,
                     roughness: self.roughness,
+                    distribution: self.distribution,
                 }
             }
             "dielectric" => Material::Dielectric {
@@ -630,6 +642,7 @@ impl MaterialKeys {
                     .ior
                     .ok_or("dielectric needs 'ior', 'cauchy' or 'sellmeier'")?,
                 roughness: self.roughness,
+                distribution: self.distribution,
             },
             "plastic" => Material::Plastic {
                 reflectance: self.reflectance.ok_or("plastic needs 'reflectance'")?,
@@ -750,6 +763,27 @@ mod tests {
     }
 
     #[test]
+    fn distribution_defaults_to_ggx() {
+        let text = format!(
+            "{OK}material a conductor metal Au roughness 0.2\n\
+             material b conductor metal Au roughness 0.2 distribution beckmann\n\
+             material c dielectric ior 1.5 roughness 0.2 distribution beckmann\n\
+             material d dielectric ior 1.5 distribution ggx\n"
+        );
+        let s = parse(&text, "ok", None).unwrap();
+        let dist = |i: usize| match &s.materials[i] {
+            Material::Conductor { distribution, .. }
+            | Material::Dielectric { distribution, .. } => *distribution,
+            _ => panic!("material {i}"),
+        };
+        let n = s.materials.len();
+        assert_eq!(dist(n - 4), Distribution::Ggx);
+        assert_eq!(dist(n - 3), Distribution::Beckmann);
+        assert_eq!(dist(n - 2), Distribution::Beckmann);
+        assert_eq!(dist(n - 1), Distribution::Ggx);
+    }
+
+    #[test]
     fn errors_name_the_line() {
         let cases = [
             ("camera eye 0 0 0 target 0 0 1\nmaterial w diffuse reflectance rgb 2 0 0\n", 2, "[0, 1]"),
@@ -759,6 +793,8 @@ mod tests {
             ("camera eye 0 0 0 target 0 0 1\nmaterial g dielectric sellmeier crown\n", 2, "unknown glass"),
             ("camera eye 0 0 0 target 0 0 1\nmaterial m conductor metal Fe\n", 2, "unknown metal"),
             ("camera eye 0 0 0 target 0 0 1\nmaterial l emitter laser 900\n", 2, "380..780"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial m conductor metal Au distribution phong\n", 2, "unknown distribution"),
+            ("camera eye 0 0 0 target 0 0 1\nmaterial w diffuse reflectance rgb 1 1 1 distribution ggx\n", 2, "unknown key"),
             ("camera eye 0 0 0 target 0 0 1\nmaterial w diffuse reflectance rgb 1 1 1\nsphere center 0 0 0 material w\n", 3, "needs 'radius'"),
         ];
         for (text, line, msg) in cases {

@@ -29,7 +29,7 @@ impl Pixel {
                 continue;
             }
             let w = s.radiance[i] as f64 / pdf as f64 / LANES as f64;
-            let c = temc_color::cie::cmf_fast(l);
+            let c = temc_color::cie::cmf_tabulated_f32(l);
             for (acc, cmf) in self.xyz.iter_mut().zip(c) {
                 *acc += cmf as f64 * w / y_norm;
             }

@@ -6,6 +6,8 @@
 
 use std::f32::consts::PI;
 
+use std::cell::Cell;
+
 use crate::geometry::shape::{sample_sphere_cone, sphere_cone_pdf, Prim};
 use crate::geometry::vec3::V3;
 use crate::materials::scattering::sample_cosine;
@@ -24,6 +26,52 @@ pub(super) struct Direct<'a> {
     pub scene: &'a Scene,
     /// Which light strategies are weakened.
     pub sampling: Sampling,
+    /// The path's spectra at its wavelengths, evaluated once.
+    pub spectra: &'a SpectrumCache,
+}
+
+/// A per-path cache of spectra (emitters', measured metals') at the path's wavelengths:
+/// a path meets the same lamp and metal at every bounce, and a measured table's lookup
+/// is a binary search. Keyed by the spectrum's address and the wavelengths (which change
+/// only where dispersion splits the path), so a hit returns exactly what
+/// `Spectrum::sample` would.
+pub(super) struct SpectrumCache {
+    entries: [Cell<(usize, Lanes, Lanes)>; CACHED],
+    next: Cell<usize>,
+}
+
+const CACHED: usize = 8;
+
+impl SpectrumCache {
+    pub fn new() -> Self {
+        SpectrumCache {
+            entries: std::array::from_fn(|_| Cell::new((0, [0.0; LANES], [0.0; LANES]))),
+            next: Cell::new(0),
+        }
+    }
+
+    /// `s.sample(wl)`, from the cache where it was evaluated at these wavelengths.
+    #[inline]
+    pub fn sample(&self, s: &Spectrum, wl: &Wavelengths) -> Lanes {
+        if matches!(
+            s,
+            Spectrum::Constant(_) | Spectrum::Dense(_) | Spectrum::RgbReflectance(_)
+        ) {
+            return s.sample(wl); // already cheaper than a lookup
+        }
+        let key = s as *const Spectrum as usize;
+        for e in &self.entries {
+            let (k, l, v) = e.get();
+            if k == key && l == wl.lambda {
+                return v;
+            }
+        }
+        let v = s.sample(wl);
+        let i = self.next.get();
+        self.entries[i].set((key, wl.lambda, v));
+        self.next.set((i + 1) % CACHED);
+        v
+    }
 }
 
 /// One light sample seen from a surface point, already tested for occlusion.
@@ -78,7 +126,7 @@ impl Direct<'_> {
             return;
         }
         let x = hit.p + hit.n * crate::geometry::RAY_OFFSET;
-        let Some(ls) = sample_light(self.scene, self.sampling, x, wl, rng) else {
+        let Some(ls) = sample_light(self.scene, self.sampling, self.spectra, x, wl, rng) else {
             return;
         };
         let Some((f_cos, pdf)) = bsdf(ls.wi) else {
@@ -146,6 +194,7 @@ pub(super) fn diffuse_bounce(
 fn sample_light(
     scene: &Scene,
     sampling: Sampling,
+    spectra: &SpectrumCache,
     x: V3,
     wl: &Wavelengths,
     rng: &mut Rng,
@@ -174,7 +223,7 @@ fn sample_light(
     if scene.occluded(x, wi, dist * (1.0 - 1e-4), li) {
         return None;
     }
-    let le = s.sample(wl).map(|v| v * scale);
+    let le = spectra.sample(s, wl).map(|v| v * scale);
     Some(LightSample {
         wi,
         le,

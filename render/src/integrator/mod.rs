@@ -29,7 +29,7 @@ use crate::materials::{Material, SMOOTH};
 use crate::rng::Rng;
 use crate::scene::{Features, Scene};
 use crate::spectral::wavelengths::{mul, Lanes, Wavelengths, LANES};
-use direct::{diffuse_bounce, emission, Direct};
+use direct::{diffuse_bounce, emission, Direct, SpectrumCache};
 pub use sampling::{Mode, Sampling};
 
 /// Which code paths a render compiles in.
@@ -137,7 +137,12 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     let mut radiance = [0.0f32; LANES];
     let mut aux: Option<([f32; 3], V3)> = None;
     let mut depth0 = 0.0;
-    let direct = Direct { scene, sampling };
+    let spectra = SpectrumCache::new();
+    let direct = Direct {
+        scene,
+        sampling,
+        spectra: &spectra,
+    };
     let roulette_start = sampling.roulette_start();
     let (mut o, mut d) = (origin, d);
     let mut beta = [1.0f32; LANES];
@@ -145,7 +150,12 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
     // 0 after the camera or a bounce that next-event estimation did not cover.
     let mut prev_pdf = 0.0f32;
     let mut prev_p = origin;
-    for depth in 0..max_depth {
+    // pbrt-v4's depth convention: `depth` counts the scattering events before this
+    // vertex, so `max_depth` N gives paths of at most N bounces (0: emitters seen
+    // directly; 1: direct lighting). The vertex after the N-th bounce is still
+    // intersected, for emission only: the BSDF sample of the last scattering vertex is
+    // the partner of its light sample in MIS, and leaving it out biased that bounce low.
+    for depth in 0..=max_depth {
         let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
             if let Some((env, scale)) = &scene.environment {
                 let le = env.sample(&wl);
@@ -162,12 +172,15 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
         let wo = -d;
         let (u, v) = hit.uv;
         let material = &scene.materials[hit.material];
+        if depth == max_depth && !matches!(material, Material::Emitter { .. }) {
+            break; // no bounce left: only emission counts here
+        }
         let (wi, transmitted) = match material {
             Material::Emitter { .. } => {
                 aux.get_or_insert(([1.0; 3], hit.n));
                 if let Some((s, scale)) = emission(material, hit.front) {
                     let w = direct.emitted_weight(prev_pdf, prev_p, &hit, d);
-                    let le = s.sample(&wl);
+                    let le = spectra.sample(s, &wl);
                     for i in 0..LANES {
                         radiance[i] += beta[i] * le[i] * scale * w;
                     }
@@ -235,10 +248,11 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 metal,
                 roughness,
                 albedo,
+                distribution: mf,
             } => {
                 let a = roughness.eval_scalar(u, v);
-                let eta = metal.eta.sample(&wl);
-                let k = metal.k.sample(&wl);
+                let eta = spectra.sample(&metal.eta, &wl);
+                let k = spectra.sample(&metal.k, &wl);
                 let fresnel =
                     |cos: f32| std::array::from_fn(|i| fresnel_conductor(cos, eta[i], k[i]));
                 let (wi, cos_m, g) = if a < SMOOTH {
@@ -247,23 +261,27 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 } else {
                     aux.get_or_insert((*albedo, hit.n));
                     direct.next_event(&hit, &wl, &beta, rng, &mut radiance, |wi| {
-                        let (fc, pdf, cos_h) = ggx_reflection(wo, wi, hit.n, a)?;
+                        let (fc, pdf, cos_h) = mf.reflection(wo, wi, hit.n, a)?;
                         let fr: Lanes = fresnel(cos_h);
                         Some((fr.map(|v| v * fc), pdf))
                     });
-                    let m = sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform());
+                    let m = mf.sample(wo, hit.n, a, rng.uniform(), rng.uniform());
                     let wi = reflect(wo, m);
                     if wi.dot(hit.n) <= 0.0 {
                         break;
                     }
-                    prev_pdf = ggx_reflection(wo, wi, hit.n, a).map_or(0.0, |r| r.1);
-                    (wi, wo.dot(m), ggx_g1(wi.dot(hit.n), a))
+                    prev_pdf = mf.reflection(wo, wi, hit.n, a).map_or(0.0, |r| r.1);
+                    (wi, wo.dot(m), mf.g1(wi.dot(hit.n), a))
                 };
                 let fr: Lanes = fresnel(cos_m);
                 beta = std::array::from_fn(|i| beta[i] * fr[i] * g);
                 (wi, false)
             }
-            Material::Dielectric { ior, roughness } => {
+            Material::Dielectric {
+                ior,
+                roughness,
+                distribution: mf,
+            } => {
                 if !TRANS {
                     break; // not compiled in: the kernel was chosen for a scene without glass
                 }
@@ -277,7 +295,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                 // Light sampling covers the outside reflection lobe of rough glass; lights
                 // seen through it are found by the refracted paths alone (weight 1).
                 let reflection_pdf = |wi: V3| {
-                    let (fc, pdf, cos_h) = ggx_reflection(wo, wi, hit.n, a)?;
+                    let (fc, pdf, cos_h) = mf.reflection(wo, wi, hit.n, a)?;
                     let fr = fresnel_dielectric(cos_h, eta);
                     Some((fr * fc, fr * pdf))
                 };
@@ -291,7 +309,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                             reflection_pdf(wi).map(|(fc, pdf)| ([fc; LANES], pdf))
                         });
                     }
-                    sample_microfacet(wo, hit.n, a, rng.uniform(), rng.uniform())
+                    mf.sample(wo, hit.n, a, rng.uniform(), rng.uniform())
                 };
                 let cos = wo.dot(m);
                 if cos <= 0.0 {
@@ -311,7 +329,7 @@ fn trace_kernel<const SPLIT: bool, const DISP: bool, const TRANS: bool>(
                     break;
                 }
                 if a >= SMOOTH {
-                    beta = beta.map(|b| b * ggx_g1(side.abs(), a));
+                    beta = beta.map(|b| b * mf.g1(side.abs(), a));
                 }
                 if lit && !through {
                     prev_pdf = reflection_pdf(wi).map_or(0.0, |r| r.1);

@@ -10,7 +10,7 @@ use crate::spectral::spectrum::Spectrum;
 use crate::spectral::uplift;
 use crate::spectral::wavelengths::{Lanes, Wavelengths};
 use ior::Ior;
-use scattering::fresnel_conductor;
+use scattering::{fresnel_conductor, Distribution};
 use texture::Texture;
 
 /// A conductor's measured optical constants.
@@ -81,21 +81,25 @@ pub enum Material {
         /// Reflectance in [0, 1].
         reflectance: Reflectance,
     },
-    /// A metal: complex Fresnel per wavelength, mirror or GGX microfacets.
+    /// A metal: complex Fresnel per wavelength, mirror or GGX/Beckmann microfacets.
     Conductor {
         /// Optical constants.
         metal: Metal,
-        /// GGX alpha (0 = mirror).
+        /// The microfacet alpha (0 = mirror).
         roughness: Texture,
+        /// GGX or Beckmann.
+        distribution: Distribution,
         /// Normal-incidence reflectance as linear RGB, for the albedo buffer.
         albedo: [f32; 3],
     },
-    /// Glass: Fresnel-weighted reflection and refraction, smooth or GGX-rough.
+    /// Glass: Fresnel-weighted reflection and refraction, smooth or microfacet-rough.
     Dielectric {
         /// Index of refraction.
         ior: Ior,
-        /// GGX alpha (0 = smooth).
+        /// The microfacet alpha (0 = smooth).
         roughness: Texture,
+        /// GGX or Beckmann.
+        distribution: Distribution,
     },
     /// A smooth or rough dielectric coat (index `ior`) over a Lambertian base.
     Plastic {
@@ -135,7 +139,7 @@ fn spectral_albedo(r: impl Fn(f32) -> f32) -> [f32; 3] {
     let mut ysum = 0.0;
     for l in 380..=780 {
         let (v, e) = (r(l as f32) as f64, d65.eval(l as f32) as f64);
-        let c = temc_color::cie::cmf(l as f64);
+        let c = temc_color::cie::cmf_tabulated(l as f64);
         for i in 0..3 {
             xyz[i] += c[i] * v * e;
         }

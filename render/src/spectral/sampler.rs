@@ -39,7 +39,7 @@ impl LambdaSampler {
             let w: Vec<f64> = (0..n)
                 .map(|i| {
                     let l = centre(i);
-                    let c = temc_color::cie::cmf(l as f64);
+                    let c = temc_color::cie::cmf_tabulated(l as f64);
                     s.eval(l).max(0.0) as f64 * (c[0] + c[1] + c[2])
                 })
                 .collect();
@@ -124,7 +124,7 @@ mod tests {
         for k in 0..n {
             let wl = LambdaSampler::Uniform.sample((k as f32 + 0.5) / n as f32);
             assert!(wl.terminated());
-            let y = temc_color::cie::cmf(wl.lambda[0] as f64)[1];
+            let y = temc_color::cie::cmf_tabulated(wl.lambda[0] as f64)[1];
             est += y / (wl.pdf[0] as f64 * LANES as f64);
         }
         est /= n as f64;
@@ -145,7 +145,7 @@ mod tests {
         let mut exact = 0.0f64;
         let mut l = LAMBDA_MIN;
         while l < LAMBDA_MAX {
-            exact += (temc_color::cie::cmf(l as f64)[1] * lamp.eval(l) as f64) * 0.01;
+            exact += (temc_color::cie::cmf_tabulated(l as f64)[1] * lamp.eval(l) as f64) * 0.01;
             l += 0.01;
         }
         let n = 40000;
@@ -153,7 +153,7 @@ mod tests {
         for k in 0..n {
             let wl = sampler.sample((k as f32 + 0.5) / n as f32);
             for i in 0..LANES {
-                let y = temc_color::cie::cmf(wl.lambda[i] as f64)[1];
+                let y = temc_color::cie::cmf_tabulated(wl.lambda[i] as f64)[1];
                 est += y * lamp.eval(wl.lambda[i]) as f64 / wl.pdf[i] as f64;
             }
         }

@@ -220,7 +220,7 @@ impl Spectrum {
         let mut sum = 0.0;
         let mut l = LAMBDA_MIN;
         while l <= LAMBDA_MAX {
-            sum += temc_color::cie::cmf(l as f64)[1] as f32 * self.eval(l);
+            sum += temc_color::cie::cmf_tabulated(l as f64)[1] as f32 * self.eval(l);
             l += 1.0;
         }
         sum / cie_y_integral()
@@ -245,7 +245,7 @@ pub fn cie_y_integral() -> f32 {
     let mut sum = 0.0;
     let mut l = LAMBDA_MIN;
     while l <= LAMBDA_MAX {
-        sum += temc_color::cie::cmf(l as f64)[1];
+        sum += temc_color::cie::cmf_tabulated(l as f64)[1];
         l += 1.0;
     }
     sum as f32
@@ -302,7 +302,7 @@ mod tests {
         let d65 = Spectrum::d65();
         let (mut x, mut y, mut z) = (0.0, 0.0, 0.0);
         for l in 360..=830 {
-            let c = temc_color::cie::cmf(l as f64);
+            let c = temc_color::cie::cmf_tabulated(l as f64);
             let v = d65.eval(l as f32) as f64;
             x += c[0] * v;
             y += c[1] * v;

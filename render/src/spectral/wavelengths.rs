@@ -86,7 +86,7 @@ mod tests {
         for k in 0..n {
             let wl = Wavelengths::sample((k as f32 + 0.5) / n as f32);
             for i in 0..LANES {
-                est += temc_color::cie::cmf(wl.lambda[i] as f64)[1] as f32 / wl.pdf[i];
+                est += temc_color::cie::cmf_tabulated(wl.lambda[i] as f64)[1] as f32 / wl.pdf[i];
             }
         }
         est /= (n * LANES) as f32;

@@ -93,7 +93,7 @@ struct RenderArgs {
     /// Seed: the same seed gives the same image.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Longest path, in bounces.
+    /// Longest path, in scattering events (0: emitters seen directly; 1: direct lighting).
     #[arg(long, default_value_t = 12)]
     max_depth: u32,
     /// Run the general kernel instead of the one specialised for the scene.
