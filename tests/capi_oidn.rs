@@ -3,27 +3,17 @@
 //! soundness rules (stale handles, an error callback that queries the error), aux
 //! prefiltering and spectral input.
 
-use std::ffi::{c_char, c_void, CStr, CString};
+use std::ffi::{c_char, c_void};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod common;
+
+use common::c;
 use temc::capi::*;
 use temc::filter::{Device, Filter, Quality};
 
-fn c(s: &str) -> CString {
-    CString::new(s).unwrap()
-}
-
 fn error(dev: TEMCDevice) -> (TEMCError, String) {
-    let mut msg: *const c_char = std::ptr::null();
-    let code = unsafe { temcGetDeviceError(dev, &mut msg) };
-    let text = if msg.is_null() {
-        String::new()
-    } else {
-        unsafe { CStr::from_ptr(msg) }
-            .to_string_lossy()
-            .into_owned()
-    };
-    (code, text)
+    common::device_error(dev)
 }
 
 fn device() -> TEMCDevice {

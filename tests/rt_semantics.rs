@@ -3,8 +3,9 @@
 //! "RT")`). Defaults, the albedo-only prefilter path, and OIDN's refusals at commit must
 //! agree, so the two cannot drift apart.
 
-use std::ffi::{c_char, CStr, CString};
+mod common;
 
+use common::c;
 use temc::capi::*;
 use temc::filter::{Device, Filter, ImageName, Kind, Quality};
 use temc::image::{Format, Layout};
@@ -122,10 +123,6 @@ struct CRt {
     images: Images,
 }
 
-fn c(s: &str) -> CString {
-    CString::new(s).unwrap()
-}
-
 impl CRt {
     fn seti(&self, name: &str, v: i32) {
         unsafe { temcSetFilterInt(self.filter, c(name).as_ptr(), v) };
@@ -137,15 +134,7 @@ impl CRt {
     }
 
     fn error(&self) -> Result<(), Refusal> {
-        let mut msg: *const c_char = std::ptr::null();
-        let code = unsafe { temcGetDeviceError(self.device, &mut msg) };
-        let text = if msg.is_null() {
-            String::new()
-        } else {
-            unsafe { CStr::from_ptr(msg) }
-                .to_string_lossy()
-                .into_owned()
-        };
+        let (code, text) = common::device_error(self.device);
         match code {
             TEMC_ERROR_NONE => Ok(()),
             TEMC_ERROR_INVALID_OPERATION => Err(Refusal::Operation(text)),

@@ -532,17 +532,8 @@ impl<'a> Filter<'a> {
         width: usize,
         height: usize,
     ) -> Result<(), Error> {
-        let name = image_name(name)?;
-        let format = if name.packed_channels() == 1 {
-            Format::Float
-        } else {
-            Format::Float3
-        };
-        // SAFETY: reinterpreting initialised f32s as bytes is always valid.
-        let bytes = unsafe {
-            std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data))
-        };
-        self.set_input(name, bytes, Layout::packed(format, width, height))
+        // SAFETY: f32 is plain bytes; any initialised f32 is valid as bytes.
+        unsafe { self.set_packed(name, data, (Format::Float, Format::Float3), width, height) }
     }
 
     /// Sets a tightly packed half-float input: 3 channels for colour, albedo and normal, 1
@@ -554,13 +545,30 @@ impl<'a> Filter<'a> {
         width: usize,
         height: usize,
     ) -> Result<(), Error> {
+        // SAFETY: f16 is two plain bytes (a transparent u16); any f16 is valid as bytes.
+        unsafe { self.set_packed(name, data, (Format::Half, Format::Half3), width, height) }
+    }
+
+    /// Sets a tightly packed input of `T` values in `formats` (one channel, three): the one
+    /// for depth and spectral bands, the other for colour, albedo and normal.
+    ///
+    /// # Safety
+    /// `T` must be plain data whose bytes may be read as they are (f32, f16).
+    unsafe fn set_packed<T>(
+        &mut self,
+        name: impl TryInto<ImageName, Error: Into<Error>>,
+        data: &'a [T],
+        (one, three): (Format, Format),
+        width: usize,
+        height: usize,
+    ) -> Result<(), Error> {
         let name = image_name(name)?;
         let format = if name.packed_channels() == 1 {
-            Format::Half
+            one
         } else {
-            Format::Half3
+            three
         };
-        // SAFETY: f16 is two plain bytes (a transparent u16); any f16 is valid as bytes.
+        // SAFETY: the caller's contract; the slice covers exactly `data`'s bytes.
         let bytes = unsafe {
             std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data))
         };

@@ -60,6 +60,23 @@ pub struct Npy {
 
 /// Reads a little-endian float32, C-order .npy file (format versions 1 to 3); panics with
 /// the path on anything else, since goldens are test fixtures.
+/// A device's error (temcGetDeviceError, which clears it): its code and message.
+#[cfg(feature = "capi")]
+pub fn device_error(dev: temc::capi::TEMCDevice) -> (temc::capi::TEMCError, String) {
+    let mut msg: *const std::ffi::c_char = std::ptr::null();
+    // SAFETY: `msg` is a valid out-pointer; the message stays valid until the next call.
+    let code = unsafe { temc::capi::temcGetDeviceError(dev, &mut msg) };
+    let text = if msg.is_null() {
+        String::new()
+    } else {
+        // SAFETY: a non-NULL message is a NUL-terminated string the device owns.
+        unsafe { std::ffi::CStr::from_ptr(msg) }
+            .to_string_lossy()
+            .into_owned()
+    };
+    (code, text)
+}
+
 pub fn read_npy(path: &Path) -> Npy {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     assert!(
