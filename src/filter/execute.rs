@@ -10,6 +10,7 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
+use ndarray::Array3;
 use rayon::prelude::*;
 
 use super::input::{self, ColorInput};
@@ -242,14 +243,25 @@ fn plan(
 }
 
 /// One tile's planes: the network's inputs and what the reconstruction filters.
+/// Each is (plane, y, x) over the tile's window, in the standard layout the network and the
+/// reconstruction read as flat slices.
 struct Packed {
-    chroma: Vec<f32>,
-    luma: Vec<f32>,
-    aux: Vec<f32>,
-    /// Noisy linear radiance [3, n], sanitised (and clamped to [0, 1] in LDR mode).
-    rgb: Vec<f32>,
-    /// The albedo feature [3, n] (0 where not given) when the model demodulates; else empty.
-    albedo: Vec<f32>,
+    /// Hue and saturation.
+    chroma: Array3<f32>,
+    /// Value.
+    luma: Array3<f32>,
+    /// The aux planes in the model's `temc.aux_layout` order.
+    aux: Array3<f32>,
+    /// Noisy linear radiance, sanitised (and clamped to [0, 1] in LDR mode).
+    rgb: Array3<f32>,
+    /// The albedo feature (0 where not given) when the model demodulates; else no planes.
+    albedo: Array3<f32>,
+}
+
+impl Packed {
+    fn plane(a: &Array3<f32>) -> &[f32] {
+        a.as_slice().expect("packed planes are in standard layout")
+    }
 }
 
 /// Stage 5: packs a tile's window (mirror-padded past the image edge) into planes, the aux
@@ -262,14 +274,14 @@ fn pack_tile(
     hdr: bool,
     info: &ModelInfo,
 ) -> Packed {
-    let n = win.w * win.h;
+    let planes = |count: usize| Array3::zeros((count, win.h, win.w));
     let mut p = Packed {
-        chroma: vec![0f32; 2 * n],
-        luma: vec![0f32; n],
-        aux: vec![0f32; info.aux_channels * n],
-        rgb: vec![0f32; 3 * n],
+        chroma: planes(2),
+        luma: planes(1),
+        aux: planes(info.aux_channels),
+        rgb: planes(3),
         // Only a demodulating reconstruction reads it.
-        albedo: vec![0f32; if info.demodulate { 3 * n } else { 0 }],
+        albedo: planes(if info.demodulate { 3 } else { 0 }),
     };
     // The layout resolved once, not per pixel: (buffer, channels, first plane).
     let mut first = 0;
@@ -290,12 +302,11 @@ fn pack_tile(
         let y = reflect(win.y + wy, h);
         for wx in 0..win.w {
             let x = reflect(win.x + wx, w);
-            let i = wy * win.w + wx;
             let c = radiance(src.color.px(x, y), hdr);
             let e = color::encode(c, stats.exposure);
-            p.chroma[i] = e.hsv[0];
-            p.chroma[n + i] = e.hsv[1];
-            p.luma[i] = e.hsv[2];
+            p.chroma[[0, wy, wx]] = e.hsv[0];
+            p.chroma[[1, wy, wx]] = e.hsv[1];
+            p.luma[[0, wy, wx]] = e.hsv[2];
             let a = src
                 .albedo
                 .as_ref()
@@ -309,11 +320,11 @@ fn pack_tile(
                 .as_ref()
                 .map_or(0.0, |s| features::depth(s.px(x, y)[0], stats.depth_scale));
             for (k, &v) in c.iter().enumerate() {
-                p.rgb[k * n + i] = v;
+                p.rgb[[k, wy, wx]] = v;
             }
             if info.demodulate {
                 for (k, &v) in a.iter().enumerate() {
-                    p.albedo[k * n + i] = v;
+                    p.albedo[[k, wy, wx]] = v;
                 }
             }
             for &(buffer, channels, plane) in &layout {
@@ -323,7 +334,7 @@ fn pack_tile(
                     AuxBuffer::Depth => std::slice::from_ref(&d),
                 };
                 for (k, &value) in v.iter().take(channels).enumerate() {
-                    p.aux[(plane + k) * n + i] = value;
+                    p.aux[[plane + k, wy, wx]] = value;
                 }
             }
         }
@@ -358,9 +369,9 @@ fn denoise_tile(
     let info = model.info();
     let filters = model.run(
         NetInput {
-            chroma: &p.chroma,
-            luma: &p.luma,
-            aux: &p.aux,
+            chroma: Packed::plane(&p.chroma),
+            luma: Packed::plane(&p.luma),
+            aux: Packed::plane(&p.aux),
         },
         win.h,
         win.w,
@@ -376,8 +387,8 @@ fn denoise_tile(
         exposure,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
-    let albedo = info.demodulate.then_some(p.albedo.as_slice());
-    reconstruct::reconstruct(&params, &p.rgb, albedo, &refs, win.h, win.w)
+    let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));
+    reconstruct::reconstruct(&params, Packed::plane(&p.rgb), albedo, &refs, win.h, win.w)
 }
 
 /// Runs the job. With an "output" image the result is written there and `None` returned;
