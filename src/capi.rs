@@ -1091,11 +1091,6 @@ pub extern "C" fn temcReleaseBuffer(buffer: TEMCBuffer) {
 // Semaphores (OIDN 2.5): the CPU device imports none. Each call fails as OIDN 2.5.1's CPU
 // device makes it fail: the same checks in the same order, codes and messages.
 
-/// The device of a semaphore call, which must be committed (OIDN checks this first).
-fn semaphore_device(c: &mut objects::Call, device: TEMCDevice) -> Outcome<()> {
-    committed_device(c, device).map(|_| ())
-}
-
 /// OIDN's type check: the types must be among the device's "externalSemaphoreTypes" (none).
 fn semaphore_types(types: TEMCExternalSemaphoreTypeFlags) -> Outcome<()> {
     if types == TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_NONE {
@@ -1118,7 +1113,7 @@ pub extern "C" fn temcNewSharedSemaphoreFromFD(
     _fd: i32,
 ) -> TEMCSemaphore {
     guarded(std::ptr::null_mut(), |c| {
-        semaphore_device(c, device)?;
+        committed_device(c, device)?; // OIDN checks this first
         semaphore_types(fd_type)?;
         Err(Failure::operation(
             "creating a shared semaphore from a POSIX file descriptor is not supported by the device",
@@ -1137,7 +1132,7 @@ pub extern "C" fn temcNewSharedSemaphoreFromWin32Handle(
     name: *const c_void,
 ) -> TEMCSemaphore {
     guarded(std::ptr::null_mut(), |c| {
-        semaphore_device(c, device)?;
+        committed_device(c, device)?; // OIDN checks this first
         semaphore_types(handle_type)?;
         if handle.is_null() == name.is_null() {
             return Err(Failure::invalid(
@@ -1160,7 +1155,7 @@ pub extern "C" fn temcSignalSemaphoresAsync(
     _num_semaphores: i32,
 ) {
     guarded((), |c| {
-        semaphore_device(c, device)?;
+        committed_device(c, device)?; // OIDN checks this first
         Err(Failure::operation(
             "signaling semaphores is not supported by the device",
         ))
@@ -1178,7 +1173,7 @@ pub extern "C" fn temcWaitSemaphoresAsync(
     _num_semaphores: i32,
 ) {
     guarded((), |c| {
-        semaphore_device(c, device)?;
+        committed_device(c, device)?; // OIDN checks this first
         Err(Failure::operation(
             "waiting on semaphores is not supported by the device",
         ))

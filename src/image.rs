@@ -205,19 +205,27 @@ pub unsafe fn read3(base: *const u8, layout: &Layout, x: usize, y: usize) -> [f3
     for (c, o) in out.iter_mut().enumerate().take(n) {
         // SAFETY: (x, y, c) lies inside the validated layout, so the channel's bytes are
         // inside the caller's buffer (this function's contract); reads may be unaligned.
-        *o = unsafe {
-            let p = base.add(layout.at(x, y, c));
-            if layout.format.channel_bytes() == 4 {
-                f32::from_ne_bytes(std::ptr::read_unaligned(p as *const [u8; 4]))
-            } else {
-                f16::from_bits(u16::from_ne_bytes(std::ptr::read_unaligned(
-                    p as *const [u8; 2],
-                )))
-                .to_f32()
-            }
-        };
+        *o = unsafe { read_channel(base.add(layout.at(x, y, c)), layout.format) };
     }
     out
+}
+
+/// Reads one channel value of `format` (f32, or f16 widened) at `p`, unaligned.
+///
+/// # Safety
+/// `p` must be readable for one channel of `format`.
+#[inline]
+pub unsafe fn read_channel(p: *const u8, format: Format) -> f32 {
+    if format.channel_bytes() == 4 {
+        // SAFETY: the caller's contract.
+        f32::from_ne_bytes(unsafe { std::ptr::read_unaligned(p as *const [u8; 4]) })
+    } else {
+        // SAFETY: the caller's contract.
+        f16::from_bits(u16::from_ne_bytes(unsafe {
+            std::ptr::read_unaligned(p as *const [u8; 2])
+        }))
+        .to_f32()
+    }
 }
 
 /// Writes up to three channels of pixel (x, y) from f32 (half formats round to nearest).

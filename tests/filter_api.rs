@@ -325,3 +325,27 @@ fn the_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
     println!("built-in model: max PQ difference, untiled vs 96-pixel tiles: {d:e}");
     assert!(d <= 1e-3, "{d}");
 }
+
+/// A new frame's images need another commit; with the same weights it reuses the parsed
+/// model (and so its cached plans), while new weights are parsed anew.
+#[test]
+fn recommit_with_the_same_weights_reuses_the_model() {
+    let dev = device(1);
+    let (w, h) = (32, 24);
+    let (a, b) = (image(w, h), vec![0.3f32; w * h * 3]);
+    let mut f = Filter::new(&dev, "TEMC2").unwrap();
+    f.set_weights(&weights());
+    f.set_input_f32("color", &a, w, h).unwrap();
+    f.commit().unwrap();
+    let first = f.model().unwrap().clone();
+    f.set_input_f32("color", &b, w, h).unwrap();
+    assert!(
+        f.model().is_none(),
+        "a changed filter reports no committed model"
+    );
+    f.commit().unwrap();
+    assert!(std::sync::Arc::ptr_eq(&first, f.model().unwrap()));
+    f.set_weights(&weights());
+    f.commit().unwrap();
+    assert!(!std::sync::Arc::ptr_eq(&first, f.model().unwrap()));
+}

@@ -4,7 +4,7 @@
 
 use super::RawImage;
 use crate::color::SpectralBands;
-use crate::image::{read3, Format, Layout};
+use crate::image::{read3, read_channel, Format, Layout};
 use crate::Error;
 
 /// How the colour input becomes the linear RGB the network and the reconstruction see.
@@ -140,23 +140,6 @@ pub(super) fn spectral_span(l: &Layout, bands: usize) -> Result<usize, Error> {
     let span = wide.validate("spectral")?;
     span.checked_add(pixel - cb)
         .ok_or_else(|| Error::InvalidArgument("image \"spectral\": the byte span overflows".into()))
-}
-
-/// Reads one f32 or f16 value.
-///
-/// # Safety
-/// `p` must be readable for one channel of `format`.
-unsafe fn read_channel(p: *const u8, format: Format) -> f32 {
-    if format.channel_bytes() == 4 {
-        // SAFETY: the caller's contract.
-        f32::from_ne_bytes(unsafe { std::ptr::read_unaligned(p as *const [u8; 4]) })
-    } else {
-        // SAFETY: the caller's contract.
-        half::f16::from_bits(u16::from_ne_bytes(unsafe {
-            std::ptr::read_unaligned(p as *const [u8; 2])
-        }))
-        .to_f32()
-    }
 }
 
 /// The sRGB transfer function (IEC 61966-2-1), decoding.

@@ -386,8 +386,10 @@ pub struct Filter<'a> {
     monitor: Option<Monitor<'a>>,
     /// The loaded model, kept while nothing changes.
     model: Option<Arc<Model>>,
-    /// The weights the loaded model was loaded from, to skip reloading.
-    loaded_from: Option<Arc<[u8]>>,
+    /// The last model loaded from ONNX bytes, with those bytes: kept across changes, so a
+    /// recommit with the same weights (a new frame's images) reuses the parsed graph and
+    /// its cached plans instead of parsing again.
+    loaded: Option<(Arc<[u8]>, Arc<Model>)>,
     committed: Option<Committed>,
     /// Linear RGB made from sRGB or spectral colour (allocated at commit).
     staged: Vec<f32>,
@@ -422,7 +424,7 @@ impl<'a> Filter<'a> {
             weights: None,
             monitor: None,
             model: None,
-            loaded_from: None,
+            loaded: None,
             committed: None,
             staged: Vec::new(),
             _borrows: PhantomData,
@@ -886,11 +888,7 @@ impl<'a> Filter<'a> {
             ),
         };
         let user_onnx = matches!(self.weights, Some(Weights::Onnx(_)));
-        let bytes = match &weights {
-            Weights::Onnx(w) => Some(w.clone()),
-            Weights::Parsed(_) => None,
-        };
-        let model = self.parse(weights).map_err(|e| match e {
+        let model = self.parse(weights.clone()).map_err(|e| match e {
             // As OIDN refuses a weights blob it cannot use: at commit, with
             // INVALID_OPERATION (core/tza.cpp), whatever the parser's reason.
             Error::Model(_) | Error::InvalidArgument(_) if self.checked && user_onnx => {
@@ -898,8 +896,10 @@ impl<'a> Filter<'a> {
             }
             e => e,
         })?;
+        if let Weights::Onnx(w) = weights {
+            self.loaded = Some((w, model.clone()));
+        }
         self.model = Some(model);
-        self.loaded_from = bytes;
         Ok(())
     }
 
@@ -908,8 +908,8 @@ impl<'a> Filter<'a> {
     fn parse(&self, weights: Weights) -> Result<Arc<Model>, Error> {
         let model = match weights {
             Weights::Parsed(m) => m,
-            Weights::Onnx(w) => match (&self.model, &self.loaded_from) {
-                (Some(m), Some(prev)) if Arc::ptr_eq(prev, &w) => m.clone(),
+            Weights::Onnx(w) => match &self.loaded {
+                Some((prev, m)) if Arc::ptr_eq(prev, &w) => m.clone(),
                 _ => Arc::new(Model::from_bytes(&w)?),
             },
         };
