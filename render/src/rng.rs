@@ -24,3 +24,12 @@ impl Rng {
         (x.rotate_right(r) >> 8) as f32 / (1u32 << 24) as f32
     }
 }
+
+/// SplitMix64's finaliser: a stable 64-bit mix whose every output bit depends on every
+/// input bit, for choices made by a hash of a seed (a data set's families and samplers).
+pub fn splitmix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}

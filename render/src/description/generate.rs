@@ -1,7 +1,9 @@
 //! Random scenes from a seed, for training diversity. The generator writes scene-file
 //! text (so every data-set scene can be read, edited and re-rendered) in two layouts: a
-//! closed room lit by ceiling panels, and an open floor under a sky with a lamp. The layouts
-//! it never trains on are in [`super::held_out`].
+//! closed room lit by ceiling panels, and an open floor under a sky with a lamp. These are
+//! the `v2` data set's scenes, frozen: [`super::families`] adds the other families of
+//! `--families all` on top of the helpers here. The layouts no model trains on are in
+//! [`super::held_out`].
 
 use std::fmt::Write;
 
@@ -22,7 +24,7 @@ impl Gen {
     pub(super) fn chance(&mut self, p: f32) -> bool {
         self.u() < p
     }
-    fn rgb(&mut self, lo: f32, hi: f32) -> String {
+    pub(super) fn rgb(&mut self, lo: f32, hi: f32) -> String {
         // Saturated colours as often as pastel ones.
         let base = self.range(lo, hi);
         let c: Vec<f32> = (0..3)
@@ -51,7 +53,7 @@ impl Gen {
             self.rgb(lo, hi)
         )
     }
-    fn roughness(&mut self) -> String {
+    pub(super) fn roughness(&mut self) -> String {
         if self.chance(0.25) {
             return "0".into();
         }
@@ -83,6 +85,20 @@ impl Gen {
             _ => format!("rgb {}", self.rgb(0.3, 1.0)),
         }
     }
+    /// A glass's index of refraction: a constant, or dispersive (Sellmeier, Cauchy).
+    pub(super) fn ior(&mut self) -> String {
+        match self.u() {
+            x if x < 0.3 => format!("ior {:.2}", self.range(1.3, 1.9)),
+            x if x < 0.55 => "sellmeier bk7".into(),
+            x if x < 0.8 => "sellmeier sf11".into(),
+            _ => format!(
+                "cauchy {:.3} {:.4}",
+                self.range(1.4, 1.7),
+                self.range(0.004, 0.03)
+            ),
+        }
+    }
+    /// A random material statement: diffuse, plastic, metal or glass.
     pub(super) fn material(&mut self, name: &str) -> String {
         match self.u() {
             x if x < 0.4 => format!(
@@ -101,16 +117,7 @@ impl Gen {
                 self.roughness()
             ),
             _ => {
-                let ior = match self.u() {
-                    x if x < 0.3 => format!("ior {:.2}", self.range(1.3, 1.9)),
-                    x if x < 0.55 => "sellmeier bk7".into(),
-                    x if x < 0.8 => "sellmeier sf11".into(),
-                    _ => format!(
-                        "cauchy {:.3} {:.4}",
-                        self.range(1.4, 1.7),
-                        self.range(0.004, 0.03)
-                    ),
-                };
+                let ior = self.ior();
                 let r = if self.chance(0.7) {
                     "0".to_string()
                 } else {
@@ -122,65 +129,123 @@ impl Gen {
     }
 }
 
-/// A random scene's text, deterministic in `seed`.
+/// A random scene's text, deterministic in `seed`: the `v2` data set's scenes.
 pub fn scene_text(seed: u64) -> String {
+    room_or_open(seed, None).1
+}
+
+/// [`scene_text`]'s scene and its layout ("room" or "open"); `room` forces the layout
+/// (`None`: the seed draws it, exactly as [`scene_text`] does).
+pub(super) fn room_or_open(seed: u64, room: Option<bool>) -> (&'static str, String) {
     let mut g = Gen(Rng::new(seed ^ 0x5eed_5ce7e, seed));
-    let mut s = String::new();
-    let room = g.chance(0.55);
-    let _ = writeln!(
-        s,
-        "# Random scene {seed} ({})",
-        if room { "room" } else { "open" }
-    );
-    let (w, d, h) = (g.range(3.0, 6.0), g.range(3.0, 6.0), g.range(2.2, 3.5));
-    // Objects stand in the middle third; the camera sits near the front looking in.
-    let look = (g.range(-0.3, 0.3), g.range(0.2, 0.8), g.range(-0.3, 0.3));
-    let eye = (
-        g.range(-0.4, 0.4) * w,
-        g.range(0.4, 0.8) * h.min(2.5),
-        -0.48 * d,
-    );
-    let _ = writeln!(
-        s,
-        "camera eye {:.3} {:.3} {:.3} target {:.3} {:.3} {:.3} fov {:.1}",
-        eye.0,
-        eye.1,
-        eye.2,
-        look.0,
-        look.1,
-        look.2,
-        g.range(35.0, 65.0)
-    );
-    g.floor_and_wall(&mut s, (0.1, 0.85), (0.2, 0.85));
-    let (x0, z0) = (-w / 2.0, -d / 2.0);
-    let _ = writeln!(
-        s,
-        "quad corner {x0:.3} 0 {z0:.3} edge1 0 0 {d:.3} edge2 {w:.3} 0 0 material floor"
-    );
-    let lights = 1 + g.chance(0.35) as usize;
-    for l in 0..lights {
-        let spec = g.spectrum();
+    let (layout, body) = g.layout(room, &V2);
+    (layout, format!("# Random scene {seed} ({layout})\n{body}"))
+}
+
+/// What a family changes in the `v2` layouts: their materials, lamps and objects.
+pub(super) struct Style {
+    /// Writes the `floor` and `wall` materials.
+    pub(super) surfaces: fn(&mut Gen, &mut String),
+    /// Multiplies the lamps' luminance (1 in `v2`; a dim fill light below 1).
+    pub(super) lamp_scale: f32,
+    /// Writes the objects standing on a w x d floor.
+    pub(super) objects: fn(&mut Gen, &mut String, f32, f32),
+}
+
+/// The `v2` data set's style.
+const V2: Style = Style {
+    surfaces: |g, s| g.floor_and_wall(s, (0.1, 0.85), (0.2, 0.85)),
+    lamp_scale: 1.0,
+    objects: Gen::objects,
+};
+
+impl Gen {
+    /// A room or an open floor (`room`; `None`: drawn) in `style`, without the header
+    /// line; returns "room" or "open" and the text. The layout is drawn even when forced,
+    /// so the rest of the draws do not shift.
+    pub(super) fn layout(&mut self, room: Option<bool>, style: &Style) -> (&'static str, String) {
+        let g = self;
+        let mut s = String::new();
+        let drawn = g.chance(0.55);
+        let room = room.unwrap_or(drawn);
+        let (w, d, h) = (g.range(3.0, 6.0), g.range(3.0, 6.0), g.range(2.2, 3.5));
+        // Objects stand in the middle third; the camera sits near the front looking in.
+        let look = [g.range(-0.3, 0.3), g.range(0.2, 0.8), g.range(-0.3, 0.3)];
+        let eye = [
+            g.range(-0.4, 0.4) * w,
+            g.range(0.4, 0.8) * h.min(2.5),
+            -0.48 * d,
+        ];
+        let fov = g.range(35.0, 65.0);
+        camera(&mut s, eye, look, fov);
+        (style.surfaces)(g, &mut s);
+        let (x0, z0) = (-w / 2.0, -d / 2.0);
         let _ = writeln!(
             s,
-            "material lamp{l} emitter {spec} scale {:.2}",
-            g.range(4.0, 30.0) / lights as f32
+            "quad corner {x0:.3} 0 {z0:.3} edge1 0 0 {d:.3} edge2 {w:.3} 0 0 material floor"
         );
+        let lights = 1 + g.chance(0.35) as usize;
+        for l in 0..lights {
+            let spec = g.spectrum();
+            let scale = g.range(4.0, 30.0) / lights as f32 * style.lamp_scale;
+            let _ = writeln!(s, "material lamp{l} emitter {spec} scale {scale:.2}");
+        }
+        let shell = Shell {
+            w,
+            d,
+            h,
+            x0,
+            z0,
+            lights,
+        };
+        if room {
+            g.room(&mut s, &shell);
+        } else {
+            g.open(&mut s, &shell);
+        }
+        (style.objects)(g, &mut s, w, d);
+        (if room { "room" } else { "open" }, s)
     }
-    let shell = Shell {
-        w,
-        d,
-        h,
-        x0,
-        z0,
-        lights,
-    };
-    if room {
-        g.room(&mut s, &shell);
-    } else {
-        g.open(&mut s, &shell);
+}
+
+/// Writes a quad statement.
+pub(super) fn quad(s: &mut String, corner: [f32; 3], e1: [f32; 3], e2: [f32; 3], material: &str) {
+    let [x, y, z] = corner;
+    let _ = writeln!(
+        s,
+        "quad corner {x:.3} {y:.3} {z:.3} edge1 {:.3} {:.3} {:.3} edge2 {:.3} {:.3} {:.3} material {material}",
+        e1[0], e1[1], e1[2], e2[0], e2[1], e2[2]
+    );
+}
+
+/// Floor, ceiling and walls of a w x h x d box centred on x = z = 0, facing inwards, with
+/// their `floor` and `wall` materials; the left wall (x = -w/2) is left out when
+/// `skip_left` (the caller builds it).
+pub(super) fn closed_room(
+    g: &mut Gen,
+    s: &mut String,
+    (w, h, d): (f32, f32, f32),
+    skip_left: bool,
+) {
+    g.floor_and_wall(s, (0.1, 0.8), (0.3, 0.85));
+    let (x0, z0) = (-w / 2.0, -d / 2.0);
+    quad(s, [x0, 0.0, z0], [0.0, 0.0, d], [w, 0.0, 0.0], "floor");
+    quad(s, [x0, h, z0], [w, 0.0, 0.0], [0.0, 0.0, d], "wall");
+    quad(s, [x0, 0.0, -z0], [w, 0.0, 0.0], [0.0, h, 0.0], "wall");
+    quad(s, [x0, 0.0, z0], [0.0, h, 0.0], [w, 0.0, 0.0], "wall");
+    quad(s, [-x0, 0.0, z0], [0.0, 0.0, d], [0.0, h, 0.0], "wall");
+    if !skip_left {
+        quad(s, [x0, 0.0, z0], [0.0, h, 0.0], [0.0, 0.0, d], "wall");
     }
-    g.objects(&mut s, w, d);
-    s
+}
+
+/// Writes a camera statement.
+pub(super) fn camera(s: &mut String, eye: [f32; 3], target: [f32; 3], fov: f32) {
+    let _ = writeln!(
+        s,
+        "camera eye {:.3} {:.3} {:.3} target {:.3} {:.3} {:.3} fov {fov:.1}",
+        eye[0], eye[1], eye[2], target[0], target[1], target[2]
+    );
 }
 
 /// The layout's size (width, depth, height, the floor's corner) and its lamp count.
@@ -285,9 +350,20 @@ impl Gen {
 
     /// Two to six objects with random materials in the middle of the floor.
     pub(super) fn objects(&mut self, s: &mut String, w: f32, d: f32) {
+        self.objects_with(s, w, d, Gen::material);
+    }
+
+    /// [`Gen::objects`] with materials from `material` (its statement for a name).
+    pub(super) fn objects_with(
+        &mut self,
+        s: &mut String,
+        w: f32,
+        d: f32,
+        material: fn(&mut Gen, &str) -> String,
+    ) {
         let n = 2 + (self.u() * 5.0) as usize;
         for i in 0..n {
-            let m = self.material(&format!("m{i}"));
+            let m = material(self, &format!("m{i}"));
             let _ = writeln!(s, "{m}");
             let (x, z) = (self.range(-0.3, 0.3) * w, self.range(-0.1, 0.3) * d);
             let size = self.range(0.2, 0.6);
@@ -338,5 +414,24 @@ mod tests {
         }
         // The generator covers the kernels' feature combinations.
         assert!(kinds.len() >= 6, "{kinds:?}");
+    }
+
+    /// FNV-1a over the texts of `seeds`, concatenated.
+    fn fnv1a(seeds: impl Iterator<Item = u64>) -> u64 {
+        seeds
+            .flat_map(|seed| scene_text(seed).into_bytes())
+            .fold(0xcbf2_9ce4_8422_2325, |h, b| {
+                (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+            })
+    }
+
+    #[test]
+    fn the_v2_generator_is_frozen() {
+        // spectral-v2 and the models and test splits made from it regenerate from these
+        // texts; the hashes were taken with the generator before `--families` existed.
+        assert_eq!(fnv1a(0..1000), 0x75cf_9009_67e2_e7b5);
+        // The set's own seeds (`dataset --seed 1`: 1_000_003 + index).
+        assert_eq!(fnv1a(1_000_003..1_001_003), 0x19a1_43a1_44a0_e5f4);
+        assert_eq!(scene_text(0), include_str!("testdata/v2-seed-0.scene"));
     }
 }

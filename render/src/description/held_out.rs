@@ -11,7 +11,7 @@
 
 use std::fmt::Write;
 
-use super::generate::Gen;
+use super::generate::{closed_room, quad, Gen};
 use crate::rng::Rng;
 
 /// The held-out families, by name.
@@ -30,31 +30,6 @@ pub fn scene_text(family: &str, seed: u64) -> Option<String> {
     Some(s)
 }
 
-/// Writes a quad statement.
-fn quad(s: &mut String, corner: [f32; 3], e1: [f32; 3], e2: [f32; 3], material: &str) {
-    let [x, y, z] = corner;
-    let _ = writeln!(
-        s,
-        "quad corner {x:.3} {y:.3} {z:.3} edge1 {:.3} {:.3} {:.3} edge2 {:.3} {:.3} {:.3} material {material}",
-        e1[0], e1[1], e1[2], e2[0], e2[1], e2[2]
-    );
-}
-
-/// Floor, ceiling and walls of a w x h x d box centred on x = z = 0, facing inwards; the
-/// left wall (x = -w/2) is left out when `skip_left` (the caller builds it).
-fn shell(g: &mut Gen, s: &mut String, (w, h, d): (f32, f32, f32), skip_left: bool) {
-    g.floor_and_wall(s, (0.1, 0.8), (0.3, 0.85));
-    let (x0, z0) = (-w / 2.0, -d / 2.0);
-    quad(s, [x0, 0.0, z0], [0.0, 0.0, d], [w, 0.0, 0.0], "floor");
-    quad(s, [x0, h, z0], [w, 0.0, 0.0], [0.0, 0.0, d], "wall");
-    quad(s, [x0, 0.0, -z0], [w, 0.0, 0.0], [0.0, h, 0.0], "wall");
-    quad(s, [x0, 0.0, z0], [0.0, h, 0.0], [w, 0.0, 0.0], "wall");
-    quad(s, [-x0, 0.0, z0], [0.0, 0.0, d], [0.0, h, 0.0], "wall");
-    if !skip_left {
-        quad(s, [x0, 0.0, z0], [0.0, h, 0.0], [0.0, 0.0, d], "wall");
-    }
-}
-
 /// A room lit only through a window in its left wall.
 fn window(g: &mut Gen, s: &mut String) {
     let (w, h, d) = (g.range(3.5, 6.0), g.range(2.4, 3.2), g.range(3.5, 6.0));
@@ -69,7 +44,7 @@ fn window(g: &mut Gen, s: &mut String) {
         g.range(0.0, 0.3) * d,
         g.range(40.0, 65.0)
     );
-    shell(g, s, (w, h, d), true);
+    closed_room(g, s, (w, h, d), true);
     // The left wall, built round an opening: below, above, in front and behind.
     let (x0, z0) = (-w / 2.0, -d / 2.0);
     let (y0, y1) = (g.range(0.6, 1.0), h - g.range(0.3, 0.6));
@@ -131,7 +106,7 @@ fn corridor(g: &mut Gen, s: &mut String) {
         0.3 * d,
         g.range(40.0, 60.0)
     );
-    shell(g, s, (w, h, d), false);
+    closed_room(g, s, (w, h, d), false);
     let lamps = 3 + (g.u() * 4.0) as usize;
     let spec = g.spectrum();
     let _ = writeln!(

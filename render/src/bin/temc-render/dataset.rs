@@ -24,7 +24,10 @@
 //! next); the reference uses its own seed, so its noise is independent of theirs. With
 //! `--weak-share F` a share F of the generated scenes render their noisy images with a
 //! weaker sampler ([`weak_sampling`]), so a model also sees the noise of renderers that
-//! sample worse; references always use the tracer's own sampler.
+//! sample worse; references always use the tracer's own sampler. With `--families all`
+//! the generated scenes come from every family of `description::families` (sun and sky,
+//! many small lights, glossy interiors, caustics, fine textures) instead of the `v2`
+//! rooms and open floors alone; each scene's record names its family.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -32,8 +35,10 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
-use temc_render::description::{format, generate, held_out, named};
+use temc_render::description::families::{self, Families};
+use temc_render::description::{format, held_out, named};
 use temc_render::output::{write_bytes_atomic, write_bytes_atomic_tagged};
+use temc_render::rng::splitmix;
 use temc_render::{render_progressive, Sampling, Settings};
 
 use crate::part::Part;
@@ -84,6 +89,11 @@ pub struct Args {
     /// recorded in each scene's record. References always use the default sampler.
     #[arg(long, default_value_t = 0.0, value_name = "F")]
     weak_share: f64,
+    /// The families of the generated scenes: v2 (a room or an open floor: the spectral-v2
+    /// set, unchanged) or all (also sun-sky, small-lights, glossy-interior,
+    /// caustic-fireflies and fine-texture; one per scene by a hash of its seed).
+    #[arg(long, default_value = "v2", value_name = "v2|all")]
+    families: Families,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -102,6 +112,7 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         ref_prefix_spp: a.ref_prefix_spp,
         start: a.start,
         weak_share: a.weak_share,
+        families: a.families,
     };
     let (size, out, part) = (a.size, a.out, a.part);
     let t = Instant::now();
@@ -176,6 +187,33 @@ pub struct Options {
     /// scenes read as they did before the option, and absent (0) in those sets.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub weak_share: f64,
+    /// The families of the generated scenes. Not written when `v2`, so the settings of a
+    /// `v2` set read as they did before the option, and absent (`v2`) in those sets.
+    #[serde(default, skip_serializing_if = "is_v2", with = "families_text")]
+    pub families: Families,
+}
+
+/// Whether `f` is `v2` (for serde: not written).
+fn is_v2(f: &Families) -> bool {
+    *f == Families::V2
+}
+
+/// [`Families`] as its text ("v2", "all") in `dataset.json`.
+mod families_text {
+    use serde::{Deserialize, Deserializer, Serializer};
+    use temc_render::description::families::Families;
+
+    /// Writes the text.
+    pub fn serialize<S: Serializer>(f: &Families, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(f)
+    }
+
+    /// Reads the text.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Families, D::Error> {
+        String::deserialize(d)?
+            .parse()
+            .map_err(serde::de::Error::custom)
+    }
 }
 
 /// Whether `v` is 0 (for serde: a weak share of 0 is not written).
@@ -209,6 +247,11 @@ pub struct Record {
     /// "bsdf-only,uniform-wavelength" (`--weak-share`). "default" in sets made before.
     #[serde(default = "default_sampling")]
     pub sampling: String,
+    /// The scene's family: "room", "open" or another of `description::families` for a
+    /// generated scene, "window" or "corridor" for a held-out one, "named" for the named
+    /// stress scenes. Absent from records written before; a resumed run fills it in.
+    #[serde(default)]
+    pub family: String,
 }
 
 /// The sampling mode of records written before the modes existed.
@@ -233,6 +276,9 @@ pub struct Manifest {
     /// ([`Record::sampling`]).
     #[serde(default)]
     pub sampling: BTreeMap<String, usize>,
+    /// How many finished scenes belong to each family ([`Record::family`]).
+    #[serde(default)]
+    pub families: BTreeMap<String, usize>,
     /// In a part's manifest (`--part`), which part; absent from the whole set's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub part: Option<PartOf>,
@@ -259,10 +305,8 @@ impl Manifest {
             layers: temc_color::layers::channel_names(),
             seconds_noisy: records.iter().map(|r| r.seconds_noisy).sum(),
             seconds_reference: records.iter().map(|r| r.seconds_reference).sum(),
-            sampling: records.iter().fold(BTreeMap::new(), |mut n, r| {
-                *n.entry(r.sampling.clone()).or_insert(0) += 1;
-                n
-            }),
+            sampling: count_by(&records, |r| &r.sampling),
+            families: count_by(&records, |r| &r.family),
             scenes: records,
             part,
         }
@@ -275,6 +319,14 @@ impl Manifest {
             serde_json::to_string_pretty(self).unwrap().as_bytes(),
         )
     }
+}
+
+/// How many of `records` have each value of `key`.
+fn count_by(records: &[Record], key: impl Fn(&Record) -> &String) -> BTreeMap<String, usize> {
+    records.iter().fold(BTreeMap::new(), |mut n, r| {
+        *n.entry(key(r).clone()).or_insert(0) += 1;
+        n
+    })
 }
 
 /// One scene of the set: what to render and where.
@@ -290,6 +342,8 @@ pub struct Job {
     pub text: String,
     /// The sampling mode of its noisy images.
     pub sampling: Sampling,
+    /// Its family ([`Record::family`]).
+    pub family: &'static str,
 }
 
 /// Which split a generated scene belongs to: 80 % train, 10 % validation, 10 % test,
@@ -317,15 +371,6 @@ pub fn weak_sampling(opts: &Options, index: usize) -> Sampling {
     }
     let weak = Sampling::weak_combinations();
     weak[(splitmix(h) % weak.len() as u64) as usize]
-}
-
-/// SplitMix64's finaliser: a stable 64-bit mix whose every output bit depends on every
-/// input bit.
-fn splitmix(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 /// Renders the data set, or with `part` only that part of it; `log` gets one line per
@@ -365,7 +410,13 @@ pub fn run(
     let mut records = Vec::new();
     for (k, job) in jobs.iter().enumerate() {
         match finished(job) {
-            Some(r) => records.push(r),
+            Some(mut r) => {
+                // Records from before the families name theirs from the job.
+                if r.family.is_empty() {
+                    r.family = job.family.to_string();
+                }
+                records.push(r)
+            }
             None => todo.push(k),
         }
     }
@@ -381,14 +432,15 @@ pub fn run(
         let weak = if job.sampling.is_default() {
             String::new()
         } else {
-            format!(" (sampling {})", job.sampling)
+            format!(", sampling {}", job.sampling)
         };
         log(&format!(
-            "{}/{}: {}/{}: noisy {:.1} s{weak}, reference {:.1} s",
+            "{}/{}: {}/{} ({}{weak}): noisy {:.1} s, reference {:.1} s",
             k + 1,
             jobs.len(),
             job.split,
             job.name,
+            job.family,
             r.seconds_noisy,
             r.seconds_reference
         ));
@@ -438,7 +490,7 @@ fn check_settings(opts: &Options, out: &Path, part: Option<Part>) -> Result<(), 
 /// `start` 0.
 pub fn jobs(opts: &Options) -> Vec<Job> {
     let mut jobs = Vec::new();
-    let mut push = |name: String, split, text: String, sampling| {
+    let mut push = |name: String, split, (family, text): (&'static str, String), sampling| {
         let index = jobs.len();
         jobs.push(Job {
             index,
@@ -446,6 +498,7 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
             split,
             text,
             sampling,
+            family,
         });
     };
     // The named and held-out test scenes keep the tracer's own sampler: their scores stay
@@ -454,7 +507,8 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
     if opts.named {
         for (name, _, text) in named::NAMED {
             if name != "furnace" {
-                push(format!("named-{name}"), "test", text.to_string(), own);
+                let scene = ("named", text.to_string());
+                push(format!("named-{name}"), "test", scene, own);
             }
         }
     }
@@ -462,7 +516,12 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
         for k in 0..opts.holdout {
             let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
             let text = held_out::scene_text(family, seed).expect("a listed family");
-            push(format!("holdout-{family}-{k:03}"), "test", text, own);
+            push(
+                format!("holdout-{family}-{k:03}"),
+                "test",
+                (family, text),
+                own,
+            );
         }
     }
     for i in 0..opts.count {
@@ -470,7 +529,7 @@ pub fn jobs(opts: &Options) -> Vec<Job> {
         push(
             format!("scene-{i:05}"),
             split_of(i),
-            generate::scene_text(seed),
+            families::scene(opts.families, seed),
             weak_sampling(opts, i),
         );
     }
@@ -490,6 +549,7 @@ fn render_scene(
         split,
         text,
         sampling,
+        family,
         ..
     }: &Job,
     progress: &(dyn Fn(usize) + Sync),
@@ -558,6 +618,7 @@ fn render_scene(
         seconds_reference,
         features: format!("{:?}", sc.features()),
         sampling: sampling.to_string(),
+        family: family.to_string(),
     })
 }
 
@@ -621,6 +682,7 @@ mod tests {
             ref_prefix_spp: vec![],
             start,
             weak_share: 0.0,
+            families: Families::V2,
         }
     }
 
@@ -811,6 +873,63 @@ mod tests {
         assert!(!plain.contains("weak_share"), "{plain}");
         let read: Options = serde_json::from_str(&plain).unwrap();
         assert_eq!(read.weak_share, 0.0);
+    }
+
+    #[test]
+    fn v2_families_keep_the_generator_and_all_draws_from_every_family() {
+        let v2 = jobs(&tiny(40, 1, 0));
+        for j in v2.iter().filter(|j| j.name.starts_with("scene-")) {
+            let i: u64 = j.name[6..].parse().unwrap();
+            let text = temc_render::description::generate::scene_text(3 * 1_000_003 + i);
+            assert_eq!(j.text, text, "{}", j.name);
+            assert!(["room", "open"].contains(&j.family), "{}", j.family);
+        }
+        let all = jobs(&Options {
+            families: Families::All,
+            ..tiny(40, 1, 0)
+        });
+        let kinds: std::collections::BTreeSet<_> = all.iter().map(|j| j.family).collect();
+        for f in families::FAMILIES.iter().chain(&held_out::FAMILIES) {
+            assert!(kinds.contains(f), "{f} never drawn: {kinds:?}");
+        }
+        // Only the generated scenes change; a room or open floor drawn by both is the same.
+        for (a, b) in v2.iter().zip(&all) {
+            if !a.name.starts_with("scene-") || a.family == b.family {
+                assert_eq!(a, b);
+            }
+        }
+    }
+
+    #[test]
+    fn families_are_recorded_and_counted_and_are_a_setting() {
+        let out = std::env::temp_dir().join(format!("temc-dataset-fam-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let opts = Options {
+            families: Families::All,
+            ..tiny(6, 0, 0)
+        };
+        let (quiet, none, go) = (|_: &str| {}, |_: usize| {}, AtomicBool::new(false));
+        let m = run(&opts, &out, None, &quiet, &none, &go).unwrap();
+        let mut counts = BTreeMap::new();
+        for (job, r) in jobs(&opts).iter().zip(&m.scenes) {
+            assert_eq!(r.family, job.family, "{}", r.name);
+            *counts.entry(r.family.clone()).or_insert(0) += 1;
+        }
+        assert_eq!(m.families, counts);
+        let settings = std::fs::read_to_string(out.join("dataset.json")).unwrap();
+        assert!(settings.contains("\"families\": \"all\""), "{settings}");
+        let other = Options {
+            families: Families::V2,
+            ..opts.clone()
+        };
+        let err = run(&other, &out, None, &quiet, &none, &go).unwrap_err();
+        assert!(err.contains("other settings"), "{err}");
+        std::fs::remove_dir_all(&out).unwrap();
+        // A v2 set writes its settings as before the option, and old settings read as v2.
+        let plain = serde_json::to_string(&tiny(6, 0, 0)).unwrap();
+        assert!(!plain.contains("families"), "{plain}");
+        let read: Options = serde_json::from_str(&plain).unwrap();
+        assert_eq!(read.families, Families::V2);
     }
 
     #[test]

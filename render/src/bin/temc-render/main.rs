@@ -23,7 +23,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use temc_render::description::{format, generate, held_out, named};
+use temc_render::description::families::{self, Families};
+use temc_render::description::{format, held_out, named};
 use temc_render::scene::Scene;
 use temc_render::{render_progressive, Sampling, Settings};
 
@@ -56,8 +57,13 @@ enum Command {
         /// Seed.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// A family held out of training instead (window, corridor): the data set's
-        /// `holdout-*` test scenes.
+        /// The generated families to draw from, as `dataset --families`: v2 (a room or an
+        /// open floor, the spectral-v2 set's scenes) or all (one family per seed).
+        #[arg(long, default_value = "v2", conflicts_with = "family")]
+        families: Families,
+        /// One family instead: a generated one (room, open, sun-sky, small-lights,
+        /// glossy-interior, caustic-fireflies, fine-texture) or one held out of training
+        /// (window, corridor: the data set's `holdout-*` test scenes).
         #[arg(long)]
         family: Option<String>,
     },
@@ -152,20 +158,28 @@ fn run(command: Command, cancel: &AtomicBool) -> Result<(), String> {
             }
             Ok(())
         }
-        Command::Generate { seed, family: None } => {
-            print!("{}", generate::scene_text(seed));
+        Command::Generate {
+            seed,
+            families,
+            family: None,
+        } => {
+            print!("{}", families::scene(families, seed).1);
             Ok(())
         }
         Command::Generate {
             seed,
             family: Some(f),
+            ..
         } => {
-            let text = held_out::scene_text(&f, seed).ok_or_else(|| {
-                format!(
-                    "unknown family '{f}' (one of {})",
-                    held_out::FAMILIES.join(", ")
-                )
-            })?;
+            let text = families::family_text(&f, seed)
+                .or_else(|| held_out::scene_text(&f, seed))
+                .ok_or_else(|| {
+                    format!(
+                        "unknown family '{f}' (one of {}, {})",
+                        families::FAMILIES.join(", "),
+                        held_out::FAMILIES.join(", ")
+                    )
+                })?;
             print!("{text}");
             Ok(())
         }

@@ -177,6 +177,13 @@ fn in_order(opts: &Options, manifests: Vec<(Part, Manifest)>) -> Result<Vec<Reco
                     r.name, r.sampling, job.sampling
                 ))
             }
+            // Records from before the families have none.
+            Some(r) if !r.family.is_empty() && r.family != job.family => {
+                return Err(format!(
+                    "scene {} is of family {}, not {}",
+                    r.name, r.family, job.family
+                ))
+            }
             Some(r) => records.push(r),
             None => {
                 let part = Part::holding(job.index, count);
