@@ -71,8 +71,9 @@ pub fn scene(families: Families, seed: u64) -> (&'static str, String) {
     match families {
         Families::V2 => room_or_open(seed, None),
         Families::All => {
-            let family = FAMILIES[(splitmix(seed ^ 0xfa41_1e5) % FAMILIES.len() as u64) as usize];
-            (family, family_text(family, seed).expect("a listed family"))
+            let family = FAMILIES[(splitmix(seed ^ 0x0fa4_11e5) % FAMILIES.len() as u64) as usize];
+            // Every listed family has a generator (the tests parse each one).
+            (family, family_text(family, seed).unwrap_or_default())
         }
     }
 }
@@ -403,8 +404,10 @@ fn caustic_objects(g: &mut Gen, s: &mut String, w: f32, d: f32) {
         ]);
     }
     for (i, c) in sparks.into_iter().enumerate() {
-        // Luminance-times-area 0.3 to 3 on a sphere a few millimetres across.
-        let r = g.range(0.004, 0.015);
+        // Luminance-times-area 0.3 to 3 on a sphere 1.6 to 6 cm across: smaller ones
+        // leave caustics unconverged even in the references (a path off smooth glass
+        // finds the lamp only by chance, with probability ~ its solid angle).
+        let r = g.range(0.008, 0.03);
         let spectrum = if g.chance(0.6) {
             format!("blackbody {:.0}", g.range(2700.0, 6500.0))
         } else {
