@@ -231,6 +231,33 @@ fn dataset_renders_1_spp_inputs_and_records_weak_sampling() {
     std::fs::remove_dir_all(&d).ok();
 }
 
+#[test]
+fn generate_prints_every_family_and_keeps_v2_by_default() {
+    let text = |args: &[&str]| {
+        let o = succeeded(bin().arg("generate").args(args).output().unwrap());
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let v2 = text(&["--seed", "4"]);
+    assert_eq!(v2, text(&["--seed", "4", "--families", "v2"]));
+    assert_eq!(v2, temc_render::description::generate::scene_text(4));
+    for family in temc_render::description::families::FAMILIES {
+        let t = text(&["--seed", "4", "--family", family]);
+        assert!(t.starts_with("# Random scene 4 ("), "{family}: {t}");
+    }
+    let (family, all) = temc_render::description::families::scene(
+        temc_render::description::families::Families::All,
+        4,
+    );
+    assert_eq!(text(&["--seed", "4", "--families", "all"]), all, "{family}");
+    assert!(text(&["--family", "window"]).starts_with("# Held-out scene 0 (window)"));
+    let o = bin()
+        .args(["generate", "--family", "attic"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("sun-sky") && err.contains("corridor"));
+}
+
 /// `scripts/slurm-render`, run as a Slurm array task would run it.
 fn slurm_render() -> Command {
     let mut c = Command::new(concat!(
