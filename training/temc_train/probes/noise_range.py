@@ -31,11 +31,17 @@ def relmse(x: np.ndarray, ref: np.ndarray) -> float:
     return float(np.mean((x - ref) ** 2 / (ref * ref + 0.01)))
 
 
-def scene_errors(root: str, record: dict) -> dict:
-    """RelMSE by spp of one scene's noisy inputs."""
+def scene_errors(root: str, record: dict):
+    """RelMSE by spp of one scene's noisy inputs, or the names of its files with
+    non-finite pixels (a tracer bug, which a RelMSE would hide as NaN)."""
     d = os.path.join(root, record["dir"])
+    images = {spp: color(os.path.join(d, f)) for spp, f in record["noisy"]}
     ref = color(os.path.join(d, record["reference"]))
-    return {spp: relmse(color(os.path.join(d, f)), ref) for spp, f in record["noisy"]}
+    bad = [f for (_, f), x in zip(record["noisy"] + [(0, record["reference"])],
+                                  list(images.values()) + [ref]) if not np.isfinite(x).all()]
+    if bad:
+        return bad
+    return {spp: relmse(x, ref) for spp, x in images.items()}
 
 
 def table(title: str, groups: dict, spps: list) -> str:
@@ -63,9 +69,12 @@ def main(argv=None):
     if not rows:
         raise SystemExit(f"{a.data}: no generated scenes in manifest.json")
     spps = sorted(m["options"]["spp"])
-    by_family, by_sampling = {}, {}
+    by_family, by_sampling, broken = {}, {}, []
     for r in rows:
         e = scene_errors(a.data, r)
+        if isinstance(e, list):
+            broken.append(f"{r['dir']} ({', '.join(e)})")
+            continue
         weak = r.get("sampling", "default") != "default"
         by_sampling.setdefault("weak" if weak else "default", []).append(e)
         if not weak:
@@ -78,6 +87,8 @@ def main(argv=None):
     print(table("family", by_family, spps))
     print("\nPer sampling mode, every family:\n")
     print(table("sampling", by_sampling, spps))
+    if broken:
+        print(f"\nLeft out, with non-finite pixels: {'; '.join(broken)}")
 
 
 if __name__ == "__main__":
