@@ -6,8 +6,8 @@
 //!
 //! ```text
 //! DIR/dataset.json                 the settings; a resumed run must match them
-//! DIR/manifest.json                every finished scene, its files, seconds and sampling;
-//!                                  totals
+//! DIR/manifest.json                every finished scene, its files, seconds, sampling and
+//!                                  family; totals
 //! DIR/manifest.part-I-of-N.json    the same for part I of N (`--part`, see `part.rs`),
 //!                                  until `merge-manifests` joins the parts into it
 //! DIR/{train,val,test}/NAME/scene.txt   the scene file (re-renderable)
