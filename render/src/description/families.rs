@@ -131,7 +131,8 @@ fn sun_sky(g: &mut Gen) -> String {
     s
 }
 
-/// A sun `ratio` times the sky's illuminance (`sky`: its luminance) on level ground.
+/// A sun of 1.5 to 10 times the sky's illuminance on level ground (`sky`: the sky's
+/// luminance).
 fn sun(g: &mut Gen, s: &mut String, sky: f32) {
     // At least 0.5 degrees: below that 1 - cos(θmax) lies within a few hundred f32 steps
     // of 1, and the sphere sampler's cone and density lose precision.

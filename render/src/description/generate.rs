@@ -432,6 +432,9 @@ mod tests {
         assert_eq!(fnv1a(0..1000), 0x75cf_9009_67e2_e7b5);
         // The set's own seeds (`dataset --seed 1`: 1_000_003 + index).
         assert_eq!(fnv1a(1_000_003..1_001_003), 0x19a1_43a1_44a0_e5f4);
-        assert_eq!(scene_text(0), include_str!("../../tests/data/v2-seed-0.scene"));
+        assert_eq!(
+            scene_text(0),
+            include_str!("../../tests/data/v2-seed-0.scene")
+        );
     }
 }

@@ -1,7 +1,8 @@
-//! Scene families held out of training: layouts and lighting that [`super::generate`] never
-//! makes, rendered into the test split only. Held-out seeds of the training generator show
-//! whether a model generalises across seeds; these show whether it learnt denoising or our
-//! generator's rooms (issue 15: "hold out whole scene families, not just seeds").
+//! Scene families held out of training: layouts and lighting that neither
+//! [`super::generate`] nor [`super::families`] ever makes, rendered into the test split
+//! only. Held-out seeds of the training generator show whether a model generalises across
+//! seeds; these show whether it learnt denoising or our generator's rooms (issue 15: "hold
+//! out whole scene families, not just seeds").
 //!
 //! - `window`: a closed room with no lamp inside, lit by a sky and a small, very bright sun
 //!   through one window in a side wall: a sunlit patch, the rest indirect light.
