@@ -759,7 +759,11 @@ impl Table {
     /// The nodes in [`COMMITTED`]'s layout.
     #[cfg(test)]
     fn to_bytes(&self) -> Vec<u8> {
-        self.d.iter().flatten().flat_map(|v| v.to_le_bytes()).collect()
+        self.d
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect()
     }
 }
 
@@ -1073,7 +1077,10 @@ mod tests {
             .zip(&held.d)
             .flat_map(|(a, b)| (0..3).map(move |m| (a[m] - b[m]).abs() / (1.0 + a[m].abs())))
             .fold(0.0f32, f32::max);
-        assert!(worst < 1e-5, "uplift_table.bin differs from a fresh build by {worst}");
+        assert!(
+            worst < 1e-5,
+            "uplift_table.bin differs from a fresh build by {worst}"
+        );
         assert!(std::ptr::eq(table(), table()));
         assert_eq!(table().d.len(), built.d.len());
     }
