@@ -92,6 +92,19 @@ def mean_ratio(x, r):
     return float(np.mean(xs, dtype=np.float64) / max(np.mean(rs, dtype=np.float64), 1e-30))
 
 
+BORDER_PX = 8
+
+
+def border_ratio(x, r):
+    """mean_ratio over the image's outer BORDER_PX-wide frame only: a border artefact (a
+    darkened or brightened edge, issue 36) moves it from 1.0 while the whole image's mean
+    hardly moves."""
+    frame = np.ones(x.shape[:2], bool)
+    b = BORDER_PX
+    frame[b:-b, b:-b] = False
+    return mean_ratio(x[frame], r[frame])
+
+
 METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim_pq,
            "dE-ITP": delta_e_itp, "mean/ref": mean_ratio}
 

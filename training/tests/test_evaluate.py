@@ -158,3 +158,14 @@ def test_all_metrics_names_every_metric():
     m = ev.all_metrics(x, r)
     assert list(m) == ["RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref"]
     assert m["dE-ITP"] == ev.delta_e_itp(x, r) and m["RelMSE"] == ev.relmse(x, r)
+
+
+def test_border_ratio_sees_only_the_frame():
+    r = np.full((64, 48, 3), 0.5, np.float32)
+    edge = r.copy()
+    edge[:ev.BORDER_PX] *= 0.9           # the top rows: part of the frame
+    inner = r.copy()
+    inner[20:40, 20:30] *= 0.5           # inside the frame
+    assert ev.border_ratio(edge, r) < 0.99 and ev.mean_ratio(edge, r) > ev.border_ratio(edge, r)
+    assert ev.border_ratio(inner, r) == pytest.approx(1.0)
+    assert ev.mean_ratio(inner, r) < 0.99

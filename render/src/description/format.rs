@@ -232,7 +232,7 @@ impl<'a> Cursor<'a> {
             self.pos += 1;
             return Ok(Reflectance::spectral(self.spectrum((0.0, 1.0))?));
         }
-        Ok(Reflectance::Texture(self.texture()?))
+        Ok(Reflectance::texture(self.texture()?))
     }
 }
 

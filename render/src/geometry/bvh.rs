@@ -1,4 +1,4 @@
-//! A bounding volume hierarchy over all primitives of a scene (binned SAH build of a
+//! A bounding volume hierarchy over all primitives of a scene (exact SAH build of a
 //! binary tree, collapsed into 4-wide nodes whose boxes are tested at once; traversal
 //! visits the hit children nearest first).
 
@@ -48,7 +48,6 @@ struct Node4 {
     child: [Child; 4],
 }
 
-const BINS: usize = 12;
 const LEAF: usize = 2;
 const STACK: usize = 256;
 
@@ -351,55 +350,35 @@ fn build_node(bounds: &[Aabb], order: &mut [u32], offset: usize, nodes: &mut Vec
     if order.len() <= LEAF {
         return me;
     }
-    // Binned SAH over the centroid box's axes.
-    let mut best: Option<(f32, usize, usize)> = None; // cost, axis, bin boundary
+    // Exact SAH: every split of the primitives sorted by centroid along each axis.
+    let mut best: Option<(f32, usize, usize)> = None; // cost, axis, left count
+    let mut right_area = vec![0.0f32; order.len()];
     for axis in 0..3 {
-        let (lo, hi) = (axis_of(cent.lo, axis), axis_of(cent.hi, axis));
-        if hi - lo < 1e-9 {
+        if axis_of(cent.hi, axis) - axis_of(cent.lo, axis) < 1e-9 {
             continue;
         }
-        let bin_of = |i: u32| {
-            let c = axis_of(bounds[i as usize].centre(), axis);
-            (((c - lo) / (hi - lo) * BINS as f32) as usize).min(BINS - 1)
-        };
-        let mut bb = [Aabb::EMPTY; BINS];
-        let mut cnt = [0usize; BINS];
-        for &i in order.iter() {
-            let b = bin_of(i);
-            bb[b] = bb[b].join(bounds[i as usize]);
-            cnt[b] += 1;
+        sort_by_centre(order, bounds, axis);
+        let mut r = Aabb::EMPTY;
+        for k in (1..order.len()).rev() {
+            r = r.join(bounds[order[k] as usize]);
+            right_area[k] = r.half_area();
         }
-        for split in 1..BINS {
-            let (mut l, mut r) = (Aabb::EMPTY, Aabb::EMPTY);
-            let (mut nl, mut nr) = (0, 0);
-            for k in 0..split {
-                l = l.join(bb[k]);
-                nl += cnt[k];
-            }
-            for k in split..BINS {
-                r = r.join(bb[k]);
-                nr += cnt[k];
-            }
-            if nl == 0 || nr == 0 {
-                continue;
-            }
-            let cost = l.half_area() * nl as f32 + r.half_area() * nr as f32;
+        let mut l = Aabb::EMPTY;
+        for k in 1..order.len() {
+            l = l.join(bounds[order[k - 1] as usize]);
+            let cost = l.half_area() * k as f32 + right_area[k] * (order.len() - k) as f32;
             if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, axis, split));
+                best = Some((cost, axis, k));
             }
         }
     }
-    let Some((cost, axis, split)) = best else {
+    let Some((cost, axis, mid)) = best else {
         return me; // all centroids coincide: one leaf
     };
     if order.len() <= 4 && cost >= all.half_area() * order.len() as f32 {
         return me;
     }
-    let (lo, hi) = (axis_of(cent.lo, axis), axis_of(cent.hi, axis));
-    let mid = partition(order, |i| {
-        let c = axis_of(bounds[i as usize].centre(), axis);
-        ((((c - lo) / (hi - lo)) * BINS as f32) as usize).min(BINS - 1) < split
-    });
+    sort_by_centre(order, bounds, axis);
     let (left, right) = order.split_at_mut(mid);
     build_node(bounds, left, offset, nodes);
     let second = build_node(bounds, right, offset + mid, nodes);
@@ -408,15 +387,16 @@ fn build_node(bounds: &[Aabb], order: &mut [u32], offset: usize, nodes: &mut Vec
     me
 }
 
-fn partition(v: &mut [u32], pred: impl Fn(u32) -> bool) -> usize {
-    let mut k = 0;
-    for i in 0..v.len() {
-        if pred(v[i]) {
-            v.swap(i, k);
-            k += 1;
-        }
-    }
-    k
+/// Sorts `order` by the centres of its boxes along `axis`, ties by index (a
+/// deterministic tree).
+fn sort_by_centre(order: &mut [u32], bounds: &[Aabb], axis: usize) {
+    order.sort_unstable_by(|&a, &b| {
+        let (ca, cb) = (
+            axis_of(bounds[a as usize].centre(), axis),
+            axis_of(bounds[b as usize].centre(), axis),
+        );
+        ca.total_cmp(&cb).then(a.cmp(&b))
+    });
 }
 
 #[cfg(test)]

@@ -362,8 +362,10 @@ impl Packed {
         }
     }
 
-    /// The distance of the nearest intersection with `t` in (t_min, t_max).
-    #[inline]
+    /// The distance of the nearest intersection with `t` in (t_min, t_max). Always
+    /// inlined: the traversal loops call it per primitive, and a call each cost more
+    /// than the test.
+    #[inline(always)]
     pub(crate) fn hit_t(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<f32> {
         match *self {
             Packed::Sphere { c, r2 } => {

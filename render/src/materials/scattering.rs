@@ -69,7 +69,9 @@ pub fn ggx_d(cos_m: f32, alpha: f32) -> f32 {
         return 0.0;
     }
     let a2 = alpha * alpha;
-    let t = cos_m * cos_m * (a2 - 1.0) + 1.0;
+    // t >= a2 in exact arithmetic (cos_m <= 1); a rounded cos_m a hair above 1 took it to
+    // 0 at small alpha, D to infinity and the sample's weight to inf / inf = NaN.
+    let t = (cos_m * cos_m * (a2 - 1.0) + 1.0).max(a2);
     a2 / (PI * t * t)
 }
 

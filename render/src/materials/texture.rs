@@ -29,6 +29,14 @@ pub struct Texture {
     pub freq: f32,
 }
 
+impl Pattern {
+    /// Whether the blend weight is only ever exactly 0 or 1 (the texture takes two
+    /// colours).
+    pub fn two_tone(self) -> bool {
+        !matches!(self, Pattern::Noise)
+    }
+}
+
 impl Texture {
     /// The same value everywhere.
     pub fn uniform(v: [f32; 3]) -> Self {

@@ -82,7 +82,7 @@ impl LambdaSampler {
                     pdf: [0.0; LANES],
                 };
                 for i in 0..LANES {
-                    let ui = (u + i as f32 / LANES as f32).fract();
+                    let ui = wrap(u + i as f32 / LANES as f32);
                     let k = ((ui * GUIDE as f32) as usize).min(GUIDE - 1);
                     let lo = guide[k] as usize;
                     let hi = guide.get(k + 1).map_or(cdf.len(), |&g| g as usize + 1);
@@ -99,7 +99,7 @@ impl LambdaSampler {
                 let range = LAMBDA_MAX - LAMBDA_MIN;
                 let mut wl = Wavelengths {
                     lambda: std::array::from_fn(|i| {
-                        LAMBDA_MIN + (u + i as f32 / LANES as f32).fract() * range
+                        LAMBDA_MIN + wrap(u + i as f32 / LANES as f32) * range
                     }),
                     pdf: [1.0 / range; LANES],
                 };
@@ -108,6 +108,18 @@ impl LambdaSampler {
                 wl
             }
         }
+    }
+}
+
+/// `x.fract()` for `x` in [0, 2), the stratified lanes' range, to the bit: `fract` is a
+/// libm call per lane on baseline x86_64 (no SSE4.1 rounding), 5 % of a render's time
+/// with the search.
+#[inline]
+fn wrap(x: f32) -> f32 {
+    if x >= 1.0 {
+        x - 1.0
+    } else {
+        x
     }
 }
 

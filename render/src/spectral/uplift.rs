@@ -476,7 +476,7 @@ pub fn fit(rgb: [f32; 3]) -> SigmoidPoly {
 // The table.
 
 /// Nodes per axis of [`reflectance`]'s table: 3·32³ nodes (about 83 000 fitted, the rest
-/// never looked up), built in about 0.35 s on one core.
+/// never looked up), built in about 0.35 s on one core and committed ([`COMMITTED`]).
 const RES: usize = 32;
 /// The darkest slice that is fitted (largest component); darker slices are extrapolated.
 const Z_DARK: f64 = 0.01;
@@ -731,15 +731,51 @@ impl Table {
     }
 }
 
-/// The table, built on first use.
+/// [`Table::build`]`(RES)`'s nodes, committed: building them took 0.35 s of every render
+/// process (17 % of a 256x256, 16 spp render), for a result that never changes.
+/// Little-endian f32 `c·s` triples in [`Table::idx`] order; the test
+/// `committed_table_is_the_built_one` checks it against a fresh build, and
+/// `TEMC_BLESS=1 cargo test --release -p temc-render committed_table` rewrites it.
+static COMMITTED: &[u8] = include_bytes!("uplift_table.bin");
+
+impl Table {
+    /// A table of `res` from `bytes` in [`COMMITTED`]'s layout; None if the size is not
+    /// that of `res`.
+    fn from_bytes(bytes: &[u8], res: usize) -> Option<Table> {
+        if bytes.len() != 3 * res * res * res * 12 {
+            return None;
+        }
+        let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        Some(Table {
+            res,
+            z: (0..res).map(|k| node_z(k, res) as f32).collect(),
+            d: bytes
+                .chunks_exact(12)
+                .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
+                .collect(),
+        })
+    }
+
+    /// The nodes in [`COMMITTED`]'s layout.
+    #[cfg(test)]
+    fn to_bytes(&self) -> Vec<u8> {
+        self.d
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect()
+    }
+}
+
+/// The committed table; built afresh only if the committed file does not hold one of RES
+/// (the test above fails then).
 fn table() -> &'static Table {
     static T: OnceLock<Table> = OnceLock::new();
-    T.get_or_init(|| Table::build(RES))
+    T.get_or_init(|| Table::from_bytes(COMMITTED, RES).unwrap_or_else(|| Table::build(RES)))
 }
 
 /// The reflectance of linear sRGB `rgb` (clamped to [0, 1], NaN to 0) from a table of
-/// [`fit`]s, interpolated: a texture lookup's cost, for every ray hit. The first call
-/// builds the table (about 0.35 s).
+/// [`fit`]s, interpolated: a texture lookup's cost, for every ray hit.
 pub fn reflectance(rgb: [f32; 3]) -> SigmoidPoly {
     table().lookup(clamp01(rgb))
 }
@@ -1019,5 +1055,33 @@ mod tests {
         let dark = illuminant([-1.0, 0.0, f32::NAN]);
         assert_eq!((dark.scale, dark.eval(550.0)), (0.0, 0.0));
         assert_eq!(illuminant([f32::INFINITY, 0.0, 0.0]).scale, 0.0);
+    }
+
+    /// The committed table is a fresh build's, to within what another platform's `f64`
+    /// maths may move it (bit-identical where it was written).
+    #[test]
+    fn committed_table_is_the_built_one() {
+        let built = Table::build(RES);
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/src/spectral/uplift_table.bin");
+        if std::env::var_os("TEMC_BLESS").is_some() {
+            std::fs::write(path, built.to_bytes()).unwrap();
+            return;
+        }
+        let held = Table::from_bytes(COMMITTED, RES).expect(
+            "uplift_table.bin does not hold a table of RES nodes: run \
+             TEMC_BLESS=1 cargo test --release -p temc-render committed_table",
+        );
+        let worst = built
+            .d
+            .iter()
+            .zip(&held.d)
+            .flat_map(|(a, b)| (0..3).map(move |m| (a[m] - b[m]).abs() / (1.0 + a[m].abs())))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < 1e-5,
+            "uplift_table.bin differs from a fresh build by {worst}"
+        );
+        assert!(std::ptr::eq(table(), table()));
+        assert_eq!(table().d.len(), built.d.len());
     }
 }

@@ -275,7 +275,8 @@ def measure_scene(rec, root, denoisers, aux):
         outs.update((name, run(path, layers)) for name, run in denoisers.items())
         for name, (img, secs) in outs.items():
             rows.append({"scene": rec["name"], "spp": spp, "denoiser": name,
-                         "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref)})
+                         "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref),
+                         "border/ref": ev.border_ratio(img, ref)})
         if spp == 16:
             strip = (outs, ref)
             if aux:
@@ -437,6 +438,25 @@ def per_scene_section(m, denoisers, spps, scenes):
     return md
 
 
+def border_section(m, denoisers, spps):
+    """The image frame's mean over the reference's (evaluate.border_ratio) per denoiser and
+    spp: mean and extremes over the scenes. Measurements from before the column have none."""
+    if not m.rows or "border/ref" not in m.rows[0]:
+        return []
+    md = ["## Border", "",
+          f"Mean of the outer {ev.BORDER_PX}-px frame over the reference's there (1.000: no "
+          "border artefact); mean over the scenes, and the lowest and highest scene.", "",
+          "| denoiser | " + " | ".join(f"{s} spp" for s in spps) + " |",
+          "|---|" + "---:|" * len(spps)]
+    for n in denoisers:
+        cells = []
+        for s in spps:
+            v = m.values(n, s, "border/ref")
+            cells.append(f"{np.mean(v):.3f} ({min(v):.3f}-{max(v):.3f})" if v else "-")
+        md.append(f"| {n} | " + " | ".join(cells) + " |")
+    return md + [""]
+
+
 def spp_tables(m, denoisers, spps):
     metrics = list(ev.METRICS)
     md = []
@@ -536,7 +556,7 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra, page=
     return (header(tests, manifest, threads, where, page)
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
             + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
-            + per_scene_section(m, denoisers, spps, scenes)
+            + per_scene_section(m, denoisers, spps, scenes) + border_section(m, denoisers, spps)
             + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps, page["img"])
             + extra)
 
