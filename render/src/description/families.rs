@@ -322,10 +322,10 @@ fn mirrors(g: &mut Gen, s: &mut String, w: f32, d: f32) {
     }
 }
 
-/// The least nonzero roughness (microfacet alpha) the families write. The tracer gives
-/// NaN at alphas of a few thousandths (a caustic scene with a silver sphere at 0.002 did,
-/// 2 pixels of 4096 at 1024 spp; 0.005 and up did not); the `v2` generator never goes
-/// below 0.01 either.
+/// The least nonzero roughness (microfacet alpha) the families write: below it a lobe is
+/// a mirror in all but cost (light samples almost never land in it), and the `v2`
+/// generator never goes below 0.01 either. (Alphas of a few thousandths also gave NaN
+/// until GGX's D was clamped, `near_mirror_roughness_stays_finite` in render/tests.)
 const MIN_ROUGHNESS: f32 = 0.02;
 
 /// A roughness: smooth (0) with probability `p`, else up to `hi`.
