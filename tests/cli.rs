@@ -170,6 +170,23 @@ fn info_prints_the_model_card() {
 }
 
 #[test]
+fn a_closed_output_pipe_ends_quietly() {
+    // `temc info m.onnx | head -c 1`: the reader is gone before temc writes. Rust ignores
+    // SIGPIPE, so println! used to panic with a backtrace on stderr.
+    use std::process::Stdio;
+    let mut child = temc()
+        .args(["info", MODEL, "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
 fn color_only_ignores_aux_layers_in_the_colour_file() {
     use exr::prelude::*;
     let d = scratch("color-only");

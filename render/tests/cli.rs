@@ -232,6 +232,23 @@ fn dataset_renders_1_spp_inputs_and_records_weak_sampling() {
 }
 
 #[test]
+fn a_closed_output_pipe_ends_quietly() {
+    // `temc-render generate --seed 1 | head -c 1`: the reader is gone before it writes.
+    // Rust ignores SIGPIPE, so println! used to panic with a backtrace on stderr.
+    use std::process::Stdio;
+    let mut child = bin()
+        .args(["generate", "--seed", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
 fn generate_prints_every_family_and_keeps_v2_by_default() {
     let text = |args: &[&str]| {
         let o = succeeded(bin().arg("generate").args(args).output().unwrap());

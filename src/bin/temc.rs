@@ -136,6 +136,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    exit_quietly_on_closed_pipe();
     let cli = Cli::parse();
     if let Command::Denoise(args) = &cli.command {
         if args.max_memory_mb < temc::filter::DEFAULT_MAX_MEMORY_MB {
@@ -492,6 +493,16 @@ fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {
 /// and stay resident: one 832x832 TEMC-2 tile peaked at 423 MB with glibc's default and
 /// at 175 MB with a fixed 1 MB threshold, which costs about 1.6x in time (page faults on
 /// fresh mappings). The library leaves this process-wide choice to its host.
+/// A closed output pipe ends the program quietly, as it does other Unix tools (`temc info
+/// m.onnx | head`): Rust ignores SIGPIPE, so a print to a closed pipe panicked instead.
+fn exit_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restores the default action of one signal, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn limit_heap_retention() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only tunes the allocator; called before any thread starts.

@@ -115,7 +115,19 @@ struct RenderArgs {
     output: PathBuf,
 }
 
+/// A closed output pipe ends the program quietly, as it does other Unix tools
+/// (`temc-render generate --seed 1 | head`): Rust ignores SIGPIPE, so a print to a closed
+/// pipe panicked instead.
+fn exit_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restores the default action of one signal, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    exit_quietly_on_closed_pipe();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
