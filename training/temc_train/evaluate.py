@@ -123,6 +123,16 @@ def read_pfm(path):
     return np.flipud(data.reshape(h, w, ch)).astype(np.float32)
 
 
+def write_pfm(path, img):
+    """`img` [H, W, 3] or [H, W] as a little-endian PFM (read_pfm's format, rows bottom up)."""
+    img = np.asarray(img, np.float32)
+    h, w = img.shape[:2]
+    kind = "PF" if img.ndim == 3 else "Pf"
+    with open(path, "wb") as f:
+        f.write(f"{kind}\n{w} {h}\n-1.0\n".encode())
+        f.write(np.ascontiguousarray(np.flipud(img), "<f4").tobytes())
+
+
 def temc_denoise(binary, model, exr, threads=2, aux="full"):
     """Runs `temc denoise` on a temc-render EXR with the aux layers `aux` (none, albedo,
     full); returns (image, seconds to execute). The model load (commit) is left out, as

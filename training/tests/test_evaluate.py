@@ -169,3 +169,12 @@ def test_border_ratio_sees_only_the_frame():
     assert ev.border_ratio(edge, r) < 0.99 and ev.mean_ratio(edge, r) > ev.border_ratio(edge, r)
     assert ev.border_ratio(inner, r) == pytest.approx(1.0)
     assert ev.mean_ratio(inner, r) < 0.99
+
+
+def test_pfm_round_trip(tmp_path):
+    rgb = np.random.default_rng(3).random((5, 7, 3)).astype(np.float32)
+    grey = rgb[..., 0].copy()
+    ev.write_pfm(tmp_path / "c.pfm", rgb)
+    ev.write_pfm(tmp_path / "g.pfm", grey)
+    assert np.array_equal(ev.read_pfm(tmp_path / "c.pfm"), rgb)
+    assert np.array_equal(ev.read_pfm(tmp_path / "g.pfm")[..., 0], grey)

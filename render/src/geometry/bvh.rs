@@ -153,10 +153,11 @@ impl Bvh {
     /// Builds over `prims`.
     pub fn build(prims: &[Prim]) -> Self {
         let bounds: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+        let centres: Vec<V3> = bounds.iter().map(Aabb::centre).collect();
         let mut order: Vec<u32> = (0..prims.len() as u32).collect();
         let mut bin = Vec::with_capacity(2 * prims.len().max(1));
         if !prims.is_empty() {
-            build_node(&bounds, &mut order, 0, &mut bin);
+            build_node(&bounds, &centres, &mut order, 0, &mut bin);
         }
         let mut nodes = Vec::new();
         let root = if bin.is_empty() {
@@ -334,14 +335,22 @@ fn collapse(bin: &[Node], b: u32, out: &mut Vec<Node4>) -> u32 {
     me
 }
 
-fn build_node(bounds: &[Aabb], order: &mut [u32], offset: usize, nodes: &mut Vec<Node>) -> u32 {
+/// Builds the binary node over `order` (indices into `bounds` and their `centres`) and,
+/// depth first, those below it; returns its index.
+fn build_node(
+    bounds: &[Aabb],
+    centres: &[V3],
+    order: &mut [u32],
+    offset: usize,
+    nodes: &mut Vec<Node>,
+) -> u32 {
     let me = nodes.len() as u32;
     let all = order
         .iter()
         .fold(Aabb::EMPTY, |b, &i| b.join(bounds[i as usize]));
     let cent = order
         .iter()
-        .fold(Aabb::EMPTY, |b, &i| b.grow(bounds[i as usize].centre()));
+        .fold(Aabb::EMPTY, |b, &i| b.grow(centres[i as usize]));
     nodes.push(Node {
         bounds: all,
         start: offset as u32,
@@ -353,11 +362,13 @@ fn build_node(bounds: &[Aabb], order: &mut [u32], offset: usize, nodes: &mut Vec
     // Exact SAH: every split of the primitives sorted by centroid along each axis.
     let mut best: Option<(f32, usize, usize)> = None; // cost, axis, left count
     let mut right_area = vec![0.0f32; order.len()];
+    let mut sorted_by = None;
     for axis in 0..3 {
         if axis_of(cent.hi, axis) - axis_of(cent.lo, axis) < 1e-9 {
             continue;
         }
-        sort_by_centre(order, bounds, axis);
+        sort_by_centre(order, centres, axis);
+        sorted_by = Some(axis);
         let mut r = Aabb::EMPTY;
         for k in (1..order.len()).rev() {
             r = r.join(bounds[order[k] as usize]);
@@ -378,22 +389,24 @@ fn build_node(bounds: &[Aabb], order: &mut [u32], offset: usize, nodes: &mut Vec
     if order.len() <= 4 && cost >= all.half_area() * order.len() as f32 {
         return me;
     }
-    sort_by_centre(order, bounds, axis);
+    if sorted_by != Some(axis) {
+        sort_by_centre(order, centres, axis);
+    }
     let (left, right) = order.split_at_mut(mid);
-    build_node(bounds, left, offset, nodes);
-    let second = build_node(bounds, right, offset + mid, nodes);
+    build_node(bounds, centres, left, offset, nodes);
+    let second = build_node(bounds, centres, right, offset + mid, nodes);
     nodes[me as usize].start = second;
     nodes[me as usize].count = 0;
     me
 }
 
-/// Sorts `order` by the centres of its boxes along `axis`, ties by index (a
-/// deterministic tree).
-fn sort_by_centre(order: &mut [u32], bounds: &[Aabb], axis: usize) {
+/// Sorts `order` by `centres` along `axis`, ties by index: the order depends on the axis
+/// alone, so a tree is deterministic and a sort already done need not be repeated.
+fn sort_by_centre(order: &mut [u32], centres: &[V3], axis: usize) {
     order.sort_unstable_by(|&a, &b| {
         let (ca, cb) = (
-            axis_of(bounds[a as usize].centre(), axis),
-            axis_of(bounds[b as usize].centre(), axis),
+            axis_of(centres[a as usize], axis),
+            axis_of(centres[b as usize], axis),
         );
         ca.total_cmp(&cb).then(a.cmp(&b))
     });

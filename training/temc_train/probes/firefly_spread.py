@@ -63,22 +63,13 @@ def spread(color: np.ndarray, k: float, sigma: float, eps: float = 1e-4):
     return out, int(fly.sum())
 
 
-def write_pfm(path: str, img: np.ndarray) -> None:
-    img = np.asarray(img, np.float32)
-    h, w = img.shape[:2]
-    kind = "PF" if img.ndim == 3 else "Pf"
-    with open(path, "wb") as f:
-        f.write(f"{kind}\n{w} {h}\n-1.0\n".encode())
-        f.write(np.ascontiguousarray(np.flipud(img), "<f4").tobytes())
-
-
 def denoise(temc: str, model: str, layers: dict, color: np.ndarray, tmp: str) -> np.ndarray:
     """`temc denoise` on `color` with the layers' aux buffers."""
     args = [temc, "denoise", "--model", model, "--threads", "2", "-o", f"{tmp}/out.pfm"]
     for flag, img in (("--color", color), ("--albedo", layers["albedo"]),
                       ("--normal", layers["normal"]), ("--depth", layers.get("depth"))):
         if img is not None:
-            write_pfm(f"{tmp}/{flag[2:]}.pfm", img if img.ndim < 3 or img.shape[2] == 3
+            ev.write_pfm(f"{tmp}/{flag[2:]}.pfm", img if img.ndim < 3 or img.shape[2] == 3
                       else img[..., 0])
             args += [flag, f"{tmp}/{flag[2:]}.pfm"]
     subprocess.run(args, check=True, capture_output=True)

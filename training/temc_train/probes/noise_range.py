@@ -5,7 +5,7 @@ percentiles over scenes.
 
     python -m temc_train.probes.noise_range --data /tmp/noise-range
 
-RelMSE is temc-render's (`film::relmse`): the mean over pixels and channels of
+RelMSE is evaluate.relmse (temc-render's `film::relmse`): the mean over pixels and channels of
 (x - r)^2 / (r^2 + 0.01). The reference is itself noisy: at `ref_spp` it adds about
 spp / ref_spp of an input's RelMSE. Generated scenes only (the named and held-out test
 scenes are left out). Prints two Markdown tables, for docs/render.md.
@@ -17,18 +17,13 @@ import os
 
 import numpy as np
 
-from .. import exr_numpy
+from ..data import read_exr
+from ..evaluate import relmse
 
 
 def color(path: str) -> np.ndarray:
-    """The colour layer of a temc-render EXR, [H, W, 3]."""
-    ch = exr_numpy.read(path)
-    return np.stack([ch[f"color.{c}"] for c in "RGB"], -1).astype(np.float64)
-
-
-def relmse(x: np.ndarray, ref: np.ndarray) -> float:
-    """temc-render's RelMSE (film::relmse)."""
-    return float(np.mean((x - ref) ** 2 / (ref * ref + 0.01)))
+    """The colour layer of a temc-render EXR, [H, W, 3], in float64."""
+    return read_exr(path)["color"].astype(np.float64)
 
 
 def scene_errors(root: str, record: dict):
