@@ -1,3 +1,4 @@
+import math
 import pytest
 import torch
 
@@ -134,3 +135,25 @@ def test_block_mean_error_sees_dropped_samples_the_mix_loss_barely_sees():
 def test_block_mean_error_takes_images_smaller_than_a_block():
     from temc_train.loss import block_mean_error
     assert float(block_mean_error(torch.ones(1, 3, 5, 7), torch.ones(1, 3, 5, 7) * 2)) == pytest.approx(1 / 2.01, rel=1e-5)
+
+
+def test_block_log_error_charges_darkening_and_brightening_by_the_same_factor_alike():
+    """block_mean_error charges a block darkened 4x 0.75 and one brightened 4x 3.0; the
+    log-ratio term charges both log 4, and pushes a darkened block brighter."""
+    from temc_train.loss import DARK_FLOOR, block_log_error, block_mean_error, training_loss
+    target = torch.full((1, 3, 16, 16), 0.2)
+    dark, bright = target / 4, target * 4
+    assert float(block_log_error(target, target)) == 0
+    assert float(block_mean_error(dark, target)) < 0.8 < 2.8 < float(block_mean_error(bright, target))
+    expect_dark = math.log((0.2 + DARK_FLOOR) / (0.05 + DARK_FLOOR))
+    expect_bright = math.log((0.8 + DARK_FLOOR) / (0.2 + DARK_FLOOR))
+    assert float(block_log_error(dark, target)) == pytest.approx(expect_dark, rel=1e-5)
+    assert float(block_log_error(bright, target)) == pytest.approx(expect_bright, rel=1e-5)
+    assert expect_dark == pytest.approx(expect_bright, rel=0.1)  # within the floor's share
+    plain = float(training_loss(dark, target))
+    assert float(training_loss(dark, target, dark_weight=0.2)) == pytest.approx(plain + 0.2 * expect_dark, rel=1e-5)
+    p = dark.clone().requires_grad_()
+    block_log_error(p, target).backward()
+    assert (p.grad < 0).all()
+    # Negative block means (a chroma overshoot) clamp to zero instead of giving NaN.
+    assert math.isfinite(float(block_log_error(-target, target)))

@@ -157,7 +157,10 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
          + (f", plus {hp['rel_weight']:g} x relative L1" if hp["rel_weight"] else "")
          + (f", plus {hp['mean_weight']:g} x the block-mean energy term (loss.block_mean_error)"
             + (f" from step {ck['mean_from_step']:,}" if ck.get("mean_from_step") else "")
-            if hp["mean_weight"] else "") + " |"),
+            if hp["mean_weight"] else "")
+         + (f", plus {hp['dark_weight']:g} x the block log-ratio term (loss.block_log_error)"
+            + (f" from step {ck['dark_from_step']:,}" if ck.get("dark_from_step") else "")
+            if hp.get("dark_weight") else "") + " |"),
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s)"
         + (f" (grown from {ck['levels_from'][1]} at step {ck['levels_from'][0]:,}: train.add_levels)"
            if ck.get("levels_from") else "")
@@ -265,6 +268,7 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "session_scenes": st.get("session_scenes"),
             "hparams": ck.recipe(),
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
+            "dark_from_step": st.get("dark_from_step"),
             "fixed_range_from_step": st.get("fixed_range_from_step"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}

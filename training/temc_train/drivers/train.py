@@ -375,7 +375,7 @@ def hparams(a, world: int) -> dict:
     """The recipe, as the model card reads it from the checkpoint."""
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
-            "mean_weight": a.mean_weight, "target_spp": a.target_spp, "loss": a.loss,
+            "mean_weight": a.mean_weight, "dark_weight": a.dark_weight, "target_spp": a.target_spp, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
 
@@ -453,6 +453,8 @@ def resume(a) -> Session:
         state = ck.state  # Checkpoint.read gave an old run its gpu_seconds
         if a.mean_weight and not state.get("hparams", {}).get("mean_weight"):
             state["mean_from_step"] = state["step"]  # the card says when the term joined
+        if a.dark_weight and not state.get("hparams", {}).get("dark_weight"):
+            state["dark_from_step"] = state["step"]
         if group.leader:
             print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
                   f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
@@ -475,7 +477,8 @@ def step(s: Session) -> float:
     xs[:3] = [x.contiguous(memory_format=s.layout) for x in xs[:3]]
     out = denoise(s.net, xs, s.rs, s.amp)
     loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
-            else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight))
+            else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight,
+                                  a.dark_weight))
     s.opt.zero_grad(set_to_none=True)
     loss.backward()
     if finite_step(loss, s.model):
@@ -628,6 +631,9 @@ def main(argv=None):
     ap.add_argument("--mean-weight", type=float, default=0.0,
                     help="weight of the block-mean energy term (loss.block_mean_error) added to "
                          "the mix loss")
+    ap.add_argument("--dark-weight", type=float, default=0.0,
+                    help="weight of the block log-ratio energy term (loss.block_log_error), "
+                         "which charges darkened dark regions")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "
