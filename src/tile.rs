@@ -47,28 +47,62 @@ pub struct TilePlan {
     pub tiles: Vec<Tile>,
 }
 
-/// One axis: (window start, core start, core length) per segment, and the window length.
-fn axis(
-    n: usize,
-    align: usize,
-    overlap: usize,
-    max_window: usize,
-) -> (usize, Vec<(usize, usize, usize)>) {
+/// One axis of length `n`: (window start, core start, core length) per segment, for
+/// windows of length `window` (aligned, at least `2 overlap + align` unless one window
+/// covers the canvas). The first and last windows sit on the canvas edges and need context
+/// on their inner side only, so their cores reach to `window - overlap`; a window in the
+/// middle starts `overlap` before its core, rounded down to the alignment.
+fn segments(n: usize, align: usize, overlap: usize, window: usize) -> Vec<(usize, usize, usize)> {
     let canvas = n.div_ceil(align) * align;
-    let max_window = (max_window / align) * align;
-    if max_window >= canvas {
-        return (canvas, vec![(0, 0, n)]);
+    if window >= canvas {
+        return vec![(0, 0, n)];
     }
-    let core = max_window - 2 * overlap;
     let mut segs = Vec::new();
     let mut s = 0;
-    while s < n {
-        let len = core.min(n - s);
-        let start = s.saturating_sub(overlap).min(canvas - max_window);
-        segs.push((start, s, len));
-        s += core;
+    loop {
+        let start = if s == 0 {
+            0
+        } else {
+            (s - overlap) / align * align
+        };
+        if start + window >= canvas {
+            segs.push((canvas - window, s, n - s));
+            return segs;
+        }
+        let end = (start + window - overlap).min(n);
+        segs.push((start, s, end - s));
+        if end == n {
+            return segs; // the core reached the image's end inside the canvas padding
+        }
+        s = end;
     }
-    (max_window, segs)
+}
+
+/// A plan's cost as the budget planner orders it: (rounds x window area, work, tiles).
+type Cost = (usize, usize, usize);
+
+/// The smallest window a tile may have: a core of one alignment step between overlaps.
+fn min_window(align: usize, overlap: usize) -> usize {
+    2 * overlap + align
+}
+
+/// One axis's choices for the budget planner: (window, segments) for each window length
+/// that needs fewer segments than every shorter one, from the smallest window up to the
+/// canvas (one segment).
+fn axis_choices(n: usize, align: usize, overlap: usize) -> Vec<(usize, usize)> {
+    let canvas = n.div_ceil(align) * align;
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    let mut win = min_window(align, overlap).min(canvas);
+    loop {
+        let count = segments(n, align, overlap, win).len();
+        if out.last().is_none_or(|&(_, c)| count < c) {
+            out.push((win, count));
+        }
+        if win >= canvas {
+            return out;
+        }
+        win += align;
+    }
 }
 
 impl TilePlan {
@@ -84,6 +118,65 @@ impl TilePlan {
         overlap: usize,
         max_window: usize,
     ) -> Result<Self, Error> {
+        Self::check(width, height, alignment)?;
+        let overlap = overlap.div_ceil(alignment) * alignment;
+        let fit = |n: usize| {
+            let canvas = n.div_ceil(alignment) * alignment;
+            (max_window / alignment * alignment)
+                .max(min_window(alignment, overlap))
+                .min(canvas)
+        };
+        Ok(Self::with_windows(
+            width,
+            height,
+            alignment,
+            overlap,
+            (fit(width), fit(height)),
+        ))
+    }
+
+    /// Plans tiles for a `width x height` image whose windows may hold at most
+    /// `max_area` pixels each, for `threads` workers: of every window shape that fits, the
+    /// one that finishes first (rounds of `threads` tiles, times the window's area), then
+    /// the one with the least work in all. Square windows of the largest area that fits
+    /// would cut 1080p into windows 1.75 times its size at a 4 GB budget, and 2.85 times
+    /// at 1.5 GB (they overshoot on one axis and repeat overlap on the other). Where no
+    /// shape fits, the smallest windows are planned, and the caller decides.
+    pub fn for_budget(
+        width: usize,
+        height: usize,
+        alignment: usize,
+        overlap: usize,
+        max_area: f64,
+        threads: usize,
+    ) -> Result<Self, Error> {
+        Self::check(width, height, alignment)?;
+        let overlap = overlap.div_ceil(alignment) * alignment;
+        let xs = axis_choices(width, alignment, overlap);
+        let ys = axis_choices(height, alignment, overlap);
+        let threads = threads.max(1);
+        // (rounds x area, work, tiles) and the window shape that gives it.
+        let mut best: Option<(Cost, (usize, usize))> = None;
+        for &(ww, nx) in &xs {
+            for &(wh, ny) in &ys {
+                let area = ww * wh;
+                if area as f64 > max_area {
+                    continue;
+                }
+                let tiles = nx * ny;
+                let key = (tiles.div_ceil(threads) * area, tiles * area, tiles);
+                if best.is_none_or(|(k, _)| key < k) {
+                    best = Some((key, (ww, wh)));
+                }
+            }
+        }
+        let windows = best.map_or((xs[0].0, ys[0].0), |(_, w)| w);
+        Ok(Self::with_windows(
+            width, height, alignment, overlap, windows,
+        ))
+    }
+
+    fn check(width: usize, height: usize, alignment: usize) -> Result<(), Error> {
         if width == 0 || height == 0 {
             return Err(Error::InvalidArgument(format!(
                 "image size {width}x{height} has no pixels"
@@ -92,10 +185,20 @@ impl TilePlan {
         if alignment == 0 {
             return Err(Error::InvalidArgument("alignment must be positive".into()));
         }
-        let overlap = overlap.div_ceil(alignment) * alignment;
-        let max_window = max_window.max(2 * overlap + alignment);
-        let (ww, xs) = axis(width, alignment, overlap, max_window);
-        let (wh, ys) = axis(height, alignment, overlap, max_window);
+        Ok(())
+    }
+
+    /// The plan for windows of `(ww, wh)` (aligned, within the canvas, at least the
+    /// smallest window where more than one is needed); `overlap` is aligned.
+    fn with_windows(
+        width: usize,
+        height: usize,
+        alignment: usize,
+        overlap: usize,
+        (ww, wh): (usize, usize),
+    ) -> Self {
+        let xs = segments(width, alignment, overlap, ww);
+        let ys = segments(height, alignment, overlap, wh);
         let mut tiles = Vec::with_capacity(xs.len() * ys.len());
         for &(wy, cy, ch) in &ys {
             for &(wx, cx, cw) in &xs {
@@ -115,7 +218,7 @@ impl TilePlan {
                 });
             }
         }
-        Ok(Self {
+        Self {
             image: (width, height),
             canvas: (
                 width.div_ceil(alignment) * alignment,
@@ -123,7 +226,7 @@ impl TilePlan {
             ),
             window: (ww, wh),
             tiles,
-        })
+        }
     }
 
     /// Pixels the network processes in total, over pixels of the image (>= 1).
@@ -191,6 +294,64 @@ mod tests {
         assert_eq!(p.window, (480, 480));
         check_invariants(&p, 32, 224);
         assert!(p.cost_ratio() > 1.0);
+    }
+
+    #[test]
+    fn budget_plans_partition_and_fit() {
+        for (w, h) in [
+            (1920, 1080),
+            (1, 1),
+            (33, 65),
+            (513, 257),
+            (4000, 31),
+            (3840, 2160),
+        ] {
+            for area in [0.0, 5e4, 3e5, 1e6, 4e6, 1e9] {
+                for threads in [1, 2, 3, 16] {
+                    let p = TilePlan::for_budget(w, h, 32, 96, area, threads).unwrap();
+                    check_invariants(&p, 32, 96);
+                    let (ww, wh) = p.window;
+                    let smallest = min_window(32, 96);
+                    // Windows fit the budget, or none could and they are the smallest.
+                    let fits = (ww * wh) as f64 <= area;
+                    assert!(fits || (ww <= smallest && wh <= smallest), "{p:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn budget_plan_for_1080p_splits_once_on_the_long_axis() {
+        // Two threads with room to spare: two windows of half the width plus one overlap
+        // (edge windows need context on one side only), not one window or square ones.
+        let p = TilePlan::for_budget(1920, 1080, 32, 96, 1e9, 2).unwrap();
+        assert_eq!((p.tiles.len(), p.window), (2, (1056, 1088)));
+        assert!(p.cost_ratio() < 1.11, "{}", p.cost_ratio());
+        // One thread and room: one window, no repeated work beyond the canvas padding.
+        let p = TilePlan::for_budget(1920, 1080, 32, 96, 1e9, 1).unwrap();
+        assert_eq!((p.tiles.len(), p.window), (1, (1920, 1088)));
+        // The budget of the old square plan's 992x992 windows: three windows side by side.
+        let p = TilePlan::for_budget(1920, 1080, 32, 96, 992.0 * 992.0, 2).unwrap();
+        assert!(p.cost_ratio() < 1.35, "{p:?}");
+    }
+
+    #[test]
+    fn more_budget_never_plans_slower() {
+        for (w, h) in [(1920, 1080), (1000, 700), (4000, 31)] {
+            for threads in [1, 2, 8] {
+                let mut last = usize::MAX;
+                for k in 1..40 {
+                    let area = 2e4 * 1.3f64.powi(k);
+                    let p = TilePlan::for_budget(w, h, 32, 96, area, threads).unwrap();
+                    let (ww, wh) = p.window;
+                    let makespan = p.tiles.len().div_ceil(threads) * ww * wh;
+                    if (ww * wh) as f64 <= area {
+                        assert!(makespan <= last, "{w}x{h} {threads} threads at {area}");
+                        last = makespan;
+                    }
+                }
+            }
+        }
     }
 
     #[test]

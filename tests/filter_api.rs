@@ -70,11 +70,11 @@ fn tiled_equals_untiled_within_1e3_pq() {
     let (w, h) = (1000, 700);
     let img = image(w, h);
     let untiled = denoise(&img, w, h, 2, 4096);
-    let tiled = denoise(&img, w, h, 2, 128);
+    let tiled = denoise(&img, w, h, 2, 64);
     assert_eq!(untiled.tiles, 1);
     assert!(tiled.tiles > 20, "{} tiles", tiled.tiles);
     let d = max_pq_diff(&untiled.output, &tiled.output);
-    println!("max PQ difference, untiled vs 128-pixel tiles: {d:e}");
+    println!("max PQ difference, untiled vs 64-pixel tiles: {d:e}");
     assert!(d <= 1e-3, "{d}");
 }
 
@@ -83,8 +83,8 @@ fn one_and_two_threads_are_bit_identical() {
     // The autoencoder's smaller receptive field gives many tiles at a low cost.
     let (w, h) = (500, 300);
     let img = image(w, h);
-    let a = denoise_with("ae", &img, w, h, 1, 96);
-    let b = denoise_with("ae", &img, w, h, 2, 96);
+    let a = denoise_with("ae", &img, w, h, 1, 32);
+    let b = denoise_with("ae", &img, w, h, 2, 32);
     assert!(a.tiles > 4, "{} tiles", a.tiles);
     assert_eq!(a.output, b.output);
 }
@@ -318,11 +318,11 @@ fn the_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
         (out, tiles)
     };
     let (untiled, one) = run(4096);
-    let (tiled, many) = run(96);
+    let (tiled, many) = run(48);
     assert_eq!(one, 1);
     assert!(many > 8, "{many} tiles");
     let d = max_pq_diff(&untiled, &tiled);
-    println!("built-in model: max PQ difference, untiled vs 96-pixel tiles: {d:e}");
+    println!("built-in model: max PQ difference, untiled vs 48-pixel tiles: {d:e}");
     assert!(d <= 1e-3, "{d}");
 }
 

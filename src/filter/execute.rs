@@ -228,14 +228,13 @@ fn plan(
     let staging = (w * h * 12 + snapshot_bytes) as f64;
     let per_thread = (job.max_memory_bytes as f64 - staging - weights) / threads as f64;
     let overlap = info.tile_overlap.div_ceil(info.alignment) * info.alignment;
-    let side = if job.tile_size > 0 {
-        job.tile_size.div_ceil(info.alignment) * info.alignment + 2 * overlap
-    } else if per_thread > 0.0 {
-        (per_thread / per_px).sqrt() as usize
+    let plan = if job.tile_size > 0 {
+        let side = job.tile_size.div_ceil(info.alignment) * info.alignment + 2 * overlap;
+        TilePlan::new(w, h, info.alignment, info.tile_overlap, side)?
     } else {
-        0
+        let max_area = per_thread.max(0.0) / per_px;
+        TilePlan::for_budget(w, h, info.alignment, info.tile_overlap, max_area, threads)?
     };
-    let plan = TilePlan::new(w, h, info.alignment, info.tile_overlap, side)?;
     let concurrent = threads.min(plan.tiles.len());
     let (tw, th) = plan.window;
     let peak = staging + weights + concurrent as f64 * per_px * (tw * th) as f64;

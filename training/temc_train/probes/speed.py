@@ -5,7 +5,7 @@ balanced at most 1.20x OIDN high's time at 1920x1080, fast at or below OIDN's. E
 times every temc model with `temc bench` (a warm-up, then `--repeat 2`, median; all aux
 buffers) and OIDN high and fast through pyoidn (HDR, albedo + normal), so every denoiser
 sees the same load; the table gives each one's median over the rounds and its ratio to
-OIDN high and to OIDN fast.
+OIDN high and to OIDN fast. docs/speed.md keeps the latest run and what was tried.
 
     cd training && python -m temc_train.probes.speed --temc ../target/release/temc \\
         --model ../onnx/temc2-balanced.onnx --model ../onnx/temc2-fast.onnx
