@@ -320,3 +320,35 @@ def test_report_refuses_a_mock_matplotlib(monkeypatch):
         report.pyplot()
     monkeypatch.undo()
     assert hasattr(report.pyplot(), "subplots")
+
+
+def test_models_of_one_shape_get_their_file_names_in_the_report():
+    from temc_train.probes.report import distinct_labels
+    names = ["TEMC-2 w0.125, 3 levels", "TEMC-2 w0.125, 3 levels", "TEMC-2 w0.125"]
+    paths = ["runs/dark/dark.onnx", "/x/ctrl.onnx", "onnx/temc2-balanced.onnx"]
+    assert distinct_labels(names, paths) == [
+        "TEMC-2 w0.125, 3 levels (dark)", "TEMC-2 w0.125, 3 levels (ctrl)", "TEMC-2 w0.125"]
+
+
+def test_dark_probe_measures_the_darkest_quarter_and_switches_parts_off():
+    import numpy as np
+    import torch
+    from temc_train.probes.dark_probe import Switched, dark_ratio
+    ref = np.ones((8, 8, 3), np.float32)
+    ref[:2] = 0.01  # the darkest quarter: two rows of eight
+    out = ref.copy()
+    assert dark_ratio(out, ref) == pytest.approx(1.0)
+    out[:2] *= 0.5
+    out[2:] *= 3.0  # light elsewhere does not count
+    assert dark_ratio(out, ref) == pytest.approx(0.5, rel=1e-5)
+    kk = 4  # kernel 2: logits [luma 4, chroma 4, 2 blends, 2 guides]
+    logits = torch.arange(1.0, 13.0).view(1, 12, 1, 1)
+
+    class Net(torch.nn.Module):
+        def forward(self, *inputs):
+            return [logits]
+
+    got = {v: Switched(Net(), 2, v)()[0].flatten().tolist() for v in ("trained", "no-guide", "box")}
+    assert got["trained"] == list(range(1, 13))
+    assert got["no-guide"] == list(range(1, 11)) + [0, 0]
+    assert got["box"] == [0] * 8 + [9, 10, 0, 0]  # the blends stay as trained

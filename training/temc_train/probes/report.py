@@ -41,6 +41,13 @@ def model_label(temc, path):
     return (name if levels == 1 else f"{name}, {levels} levels"), meta
 
 
+def distinct_labels(names, paths):
+    """The models' labels, each shared one followed by its file's name: the report keys its
+    rows by label, so two candidates of one shape would otherwise print one's numbers twice."""
+    return [f"{n} ({os.path.splitext(os.path.basename(p))[0]})" if names.count(n) > 1 else n
+            for n, p in zip(names, paths)]
+
+
 def tonemap(rgb):
     x = np.clip(rgb, 0, None)
     x = x / (1 + x)
@@ -677,9 +684,10 @@ def report(a, models, aux, oidn_denoise=None, oidn_time=None, where=None):
 
 def main(argv=None):
     a = parse_args(argv)
-    models = [(model_label(a.temc, m)[0], temc_denoiser(a.temc, m, a.threads),
+    names = distinct_labels([model_label(a.temc, m)[0] for m in a.model], a.model)
+    models = [(name, temc_denoiser(a.temc, m, a.threads),
                None if a.timing_size == "none" else temc_bench(a.temc, m, a.timing_size))
-              for m in a.model]
+              for name, m in zip(names, a.model)]
     aux_model = a.aux_model or next((m for m in a.model if m.endswith("temc2-balanced.onnx")),
                                     a.model[0] if a.model else None)
     aux = (model_label(a.temc, aux_model)[0], temc_denoiser(a.temc, aux_model, a.threads)) if aux_model else None

@@ -1,0 +1,110 @@
+"""Where do dark regions lose their light? The shipped balanced model leaves the Cycles
+family's darkest regions well below their reference at low spp while the image's mean holds
+(docs/keep-mean.md). This probe denoises every test scene in PyTorch, through the network
+and the reconstruction the core runs, once as trained and once with one part of the
+reconstruction switched off, and prints per spp the darkest quarter's light over the
+reference's there (before and after the keep-mean stage) and the geometric-mean RelMSE.
+
+    python -m temc_train.probes.dark_probe --data ../data/cycles-family \\
+        --checkpoint runs/temc2-w0.125-energy/checkpoint.pt --fixed-range 1
+
+Variants: `trained`; `no-guide` (the learned guides' range term off: guide logits 0);
+`no-fixed` (the fixed range term on log luminance off); `flat` (every kernel logit 0, the
+guides and the fixed term kept: what the range terms alone do); `box` (all of them off: a
+plain 5x5 box per level, blends as trained).
+"""
+
+import argparse
+
+import numpy as np
+import torch
+
+from .. import data, evaluate
+from ..checkpoint import Checkpoint
+from ..onnx_export import recon_of
+from ..reconstruct import LUMA
+from .probe import denoise
+
+DARK_SHARE = 0.25
+VARIANTS = ("trained", "no-guide", "no-fixed", "flat", "box")
+
+
+class Switched(torch.nn.Module):
+    """The model with parts of its logits replaced, per `variant` (module docs)."""
+
+    def __init__(self, model, kernel, variant):
+        super().__init__()
+        self.model, self.kk, self.variant = model, kernel * kernel, variant
+
+    def forward(self, *inputs):
+        outs = []
+        for f in self.model(*inputs):
+            f = f.clone()
+            if self.variant in ("no-guide", "box"):
+                f[:, 2 * self.kk + 2:] = 0.0
+            if self.variant in ("flat", "box"):
+                f[:, :2 * self.kk] = 0.0
+            outs.append(f)
+        return outs
+
+
+def dark_ratio(out, ref):
+    """Light in the reference's darkest quarter of pixels (by luminance), over the
+    reference's light there."""
+    lum = ref @ np.asarray(LUMA, ref.dtype)
+    mask = lum <= np.quantile(lum, DARK_SHARE)
+    o, r = (x[mask] @ np.asarray(LUMA, x.dtype) for x in (out, ref))
+    return float(o.sum() / max(float(r.sum()), 1e-12))
+
+
+def run(model, recon, scenes, variant, spps):
+    """{spp: (gmean RelMSE, mean dark ratio raw, mean dark ratio kept)} of one variant."""
+    recon = dict(recon, fixed_range=recon.get("fixed_range", False) and variant not in ("no-fixed", "box"))
+    switched = Switched(model, recon["kernel"], variant)
+    res = {}
+    for sc in scenes:
+        for s, spp in enumerate(sc.spp):
+            if spp not in spps:
+                continue
+            ref = sc.a["reference"]
+            kept = denoise(switched, recon, sc, s, keep=True)
+            raw = denoise(switched, recon, sc, s, keep=False)
+            res.setdefault(spp, []).append((evaluate.relmse(kept, ref), dark_ratio(raw, ref),
+                                            dark_ratio(kept, ref)))
+    return {spp: (float(np.exp(np.mean(np.log([v[0] for v in rows])))),
+                  float(np.mean([v[1] for v in rows])), float(np.mean([v[2] for v in rows])))
+            for spp, rows in res.items()}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--checkpoint", required=True)
+    ap.add_argument("--spp", default="4,16,64")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--fixed-range", type=int, choices=(0, 1), default=None,
+                    help="the fixed range term on or off (default: as the checkpoint trained; "
+                         "shipped models have it on, ship.SHIP_RECON)")
+    a = ap.parse_args(argv)
+    torch.set_num_threads(a.threads)
+    spps = {int(v) for v in a.spp.split(",")}
+    scenes = data.load_split(a.data, "test")
+    model = Checkpoint.read(a.checkpoint).build()[0].eval()
+    recon = recon_of(model)
+    if a.fixed_range is not None:
+        recon = dict(recon, fixed_range=bool(a.fixed_range))
+    noisy = {spp: np.mean([dark_ratio(sc.a["color"][s], sc.a["reference"])
+                           for sc in scenes for s, v in enumerate(sc.spp) if v == spp])
+             for spp in sorted(spps)}
+    print(f"{len(scenes)} scenes; the darkest {DARK_SHARE:.0%} of each reference's pixels; "
+          "dark: their light over the reference's (raw: before keep-mean; kept: after)\n")
+    print("| variant | spp | RelMSE | dark raw | dark kept | noisy input's dark |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for variant in VARIANTS:
+        for spp, (rel, raw, kept) in sorted(run(model, recon, scenes, variant, spps).items()):
+            print(f"| {variant} | {spp} | {rel:.4g} | {raw:.3f} | {kept:.3f} | {noisy[spp]:.3f} |",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main()
