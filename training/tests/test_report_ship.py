@@ -352,3 +352,17 @@ def test_dark_probe_measures_the_darkest_quarter_and_switches_parts_off():
     assert got["trained"] == list(range(1, 13))
     assert got["no-guide"] == list(range(1, 11)) + [0, 0]
     assert got["box"] == [0] * 8 + [9, 10, 0, 0]  # the blends stay as trained
+
+
+def test_dark_probe_conserving_level_hands_on_every_input_pixels_light():
+    import torch
+    from temc_train import reconstruct as rc
+    from temc_train.probes.dark_probe import _conserving_level
+    torch.manual_seed(0)
+    x = torch.rand(1, 3, 16, 20) ** 8 * 10  # sparse bright samples
+    logits = torch.randn(1, rc.channels(5, True), 16, 20) * 3
+    fy, fc, *_ = _conserving_level(x, logits, 5, True, True, 1.0)
+    gy, gc, *_ = rc._filter_level(x, logits, 5, True, True, 1.0)
+    assert float(fc.sum()) == pytest.approx(float(x.sum()), rel=1e-5)
+    assert float(fy.sum()) == pytest.approx(float(rc._lum(x).sum()), rel=1e-5)
+    assert abs(float(gc.sum()) / float(x.sum()) - 1) > 1e-3  # gathering does not

@@ -11,22 +11,74 @@ reference's there (before and after the keep-mean stage) and the geometric-mean 
 Variants: `trained`; `no-guide` (the learned guides' range term off: guide logits 0);
 `no-fixed` (the fixed range term on log luminance off); `flat` (every kernel logit 0, the
 guides and the fixed term kept: what the range terms alone do); `box` (all of them off: a
-plain 5x5 box per level, blends as trained).
+plain 5x5 box per level, blends as trained); `conserve` (as trained, then the light each
+input pixel's weights do not hand on, (1 - its weights' column sum) times its value, spread
+evenly over its kernel's taps inside the image: every input pixel then gives exactly its
+light, a sketch of the splatting form, done here only).
 """
 
 import argparse
+import contextlib
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from .. import data, evaluate
+from .. import reconstruct as rc
 from ..checkpoint import Checkpoint
 from ..onnx_export import recon_of
 from ..reconstruct import LUMA
 from .probe import denoise
 
 DARK_SHARE = 0.25
-VARIANTS = ("trained", "no-guide", "no-fixed", "flat", "box")
+VARIANTS = ("trained", "no-guide", "no-fixed", "flat", "box", "conserve")
+
+
+def _handed_on(weights, kernel):
+    """[N, 1, H, W]: the weight each input pixel gives over all outputs (the column sums of
+    the gather weights [N, k^2, H, W]; fold is unfold's transpose)."""
+    n, kk, h, w = weights.shape
+    return F.fold(weights.reshape(n, kk, h * w), (h, w), kernel, padding=kernel // 2)
+
+
+def _spread(d, kernel):
+    """Each pixel of `d` [N, C, H, W] shared evenly over its kernel's taps inside the image."""
+    n, c, h, w = d.shape
+    ones = torch.ones(1, 1, h, w, dtype=d.dtype)
+    box = lambda v: F.avg_pool2d(v, kernel, 1, kernel // 2, count_include_pad=True) * kernel ** 2  # noqa: E731
+    return box(d / box(ones))
+
+
+def _conserving_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+    """reconstruct._filter_level plus the spread of what each input pixel did not hand on."""
+    kk = kernel * kernel
+    logits = rc._clean(logits)
+    outside = ~rc._inside(kernel, x.shape[2], x.shape[3], x)
+    luma_l, chroma_l = logits[:, :kk], logits[:, kk:2 * kk]
+    if guide:
+        luma_l = luma_l + rc._range_term(logits[:, 2 * kk + 2:2 * kk + 3], kernel)
+        chroma_l = chroma_l + rc._range_term(logits[:, 2 * kk + 3:2 * kk + 4], kernel)
+    y = rc._lum(x)
+    if fixed_range:
+        term = rc.fixed_range_term(y, kernel, scale)
+        luma_l, chroma_l = luma_l + term, chroma_l + term
+    luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
+    chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
+    fy = rc._apply(y, luma_w, kernel) + _spread((1 - _handed_on(luma_w, kernel)) * y, kernel)
+    fc = rc._apply(x, chroma_w, kernel) + _spread((1 - _handed_on(chroma_w, kernel)) * x, kernel)
+    return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]
+
+
+@contextlib.contextmanager
+def conserving():
+    """reconstruct.py's level filter swapped for `_conserving_level` while inside."""
+    held = rc._filter_level
+    rc._filter_level = _conserving_level
+    try:
+        yield
+    finally:
+        rc._filter_level = held
 
 
 class Switched(torch.nn.Module):
@@ -67,8 +119,9 @@ def run(model, recon, scenes, variant, spps):
             if spp not in spps:
                 continue
             ref = sc.a["reference"]
-            kept = denoise(switched, recon, sc, s, keep=True)
-            raw = denoise(switched, recon, sc, s, keep=False)
+            with conserving() if variant == "conserve" else contextlib.nullcontext():
+                kept = denoise(switched, recon, sc, s, keep=True)
+                raw = denoise(switched, recon, sc, s, keep=False)
             res.setdefault(spp, []).append((evaluate.relmse(kept, ref), dark_ratio(raw, ref),
                                             dark_ratio(kept, ref)))
     return {spp: (float(np.exp(np.mean(np.log([v[0] for v in rows])))),
