@@ -15,6 +15,11 @@ plain 5x5 box per level, blends as trained); `conserve` (as trained, then the li
 input pixel's weights do not hand on, (1 - its weights' column sum) times its value, spread
 evenly over its kernel's taps inside the image: every input pixel then gives exactly its
 light, a sketch of the splatting form, done here only).
+
+    python -m temc_train.probes.dark_probe --train-conserving -- TRAIN-ARGS
+
+runs `drivers.train` with the conserving level filter (for trying whether training learns
+the form; the core cannot run such a model: export refuses nothing, so do not ship one).
 """
 
 import argparse
@@ -130,6 +135,12 @@ def run(model, recon, scenes, variant, spps):
 
 
 def main(argv=None):
+    import sys
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--train-conserving"]:
+        from ..drivers import train
+        with conserving():
+            return train.main(argv[2:] if argv[1:2] == ["--"] else argv[1:])
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True)
     ap.add_argument("--checkpoint", required=True)
