@@ -91,8 +91,9 @@ def fixed_range_term(y, kernel, scale=1.0):
     return -0.5 * excess * excess
 
 
-def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
-    """(fy, fc, luma blend logit, chroma blend logit) of one level; softmax over taps inside."""
+def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+    """(luma weights, chroma weights, luminance, cleaned logits) of one level: the softmax
+    over the taps inside, [N, k^2, H, W] each, and the luminance plane the luma weights filter."""
     kk = kernel * kernel
     logits = _clean(logits)
     outside = ~_inside(kernel, x.shape[2], x.shape[3], x)
@@ -106,6 +107,13 @@ def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
         luma_l, chroma_l = luma_l + term, chroma_l + term
     luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
     chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
+    return luma_w, chroma_w, y, logits
+
+
+def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+    """(fy, fc, luma blend logit, chroma blend logit) of one level."""
+    kk = kernel * kernel
+    luma_w, chroma_w, y, logits = level_weights(x, logits, kernel, guide, fixed_range, scale)
     fy = _apply(y, luma_w, kernel)
     fc = _apply(x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]

@@ -58,18 +58,7 @@ def _spread(d, kernel):
 def _conserving_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
     """reconstruct._filter_level plus the spread of what each input pixel did not hand on."""
     kk = kernel * kernel
-    logits = rc._clean(logits)
-    outside = ~rc._inside(kernel, x.shape[2], x.shape[3], x)
-    luma_l, chroma_l = logits[:, :kk], logits[:, kk:2 * kk]
-    if guide:
-        luma_l = luma_l + rc._range_term(logits[:, 2 * kk + 2:2 * kk + 3], kernel)
-        chroma_l = chroma_l + rc._range_term(logits[:, 2 * kk + 3:2 * kk + 4], kernel)
-    y = rc._lum(x)
-    if fixed_range:
-        term = rc.fixed_range_term(y, kernel, scale)
-        luma_l, chroma_l = luma_l + term, chroma_l + term
-    luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
-    chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
+    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale)
     fy = rc._apply(y, luma_w, kernel) + _spread((1 - _handed_on(luma_w, kernel)) * y, kernel)
     fc = rc._apply(x, chroma_w, kernel) + _spread((1 - _handed_on(chroma_w, kernel)) * x, kernel)
     return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]
