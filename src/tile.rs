@@ -155,7 +155,6 @@ impl TilePlan {
         let xs = axis_choices(width, alignment, overlap);
         let ys = axis_choices(height, alignment, overlap);
         let threads = threads.max(1);
-        // (rounds x area, work, tiles) and the window shape that gives it.
         let mut best: Option<(Cost, (usize, usize))> = None;
         for &(ww, nx) in &xs {
             for &(wh, ny) in &ys {
@@ -330,8 +329,10 @@ mod tests {
         // One thread and room: one window, no repeated work beyond the canvas padding.
         let p = TilePlan::for_budget(1920, 1080, 32, 96, 1e9, 1).unwrap();
         assert_eq!((p.tiles.len(), p.window), (1, (1920, 1088)));
-        // The budget of the old square plan's 992x992 windows: three windows side by side.
+        // The budget of the old square plan's 992x992 windows (six of them, 2.85x): two
+        // rounds of two 1056x640 windows beat three 768x1088 ones side by side.
         let p = TilePlan::for_budget(1920, 1080, 32, 96, 992.0 * 992.0, 2).unwrap();
+        assert_eq!((p.tiles.len(), p.window), (4, (1056, 640)), "{p:?}");
         assert!(p.cost_ratio() < 1.35, "{p:?}");
     }
 

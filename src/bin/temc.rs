@@ -488,11 +488,6 @@ fn progress_bar(json: bool) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// Used when a budget below the default is asked for. glibc raises its mmap threshold
-/// each time a large block is freed, after which tract's per-op tensors come from the heap
-/// and stay resident: one 832x832 TEMC-2 tile peaked at 423 MB with glibc's default and
-/// at 175 MB with a fixed 1 MB threshold, which costs about 1.6x in time (page faults on
-/// fresh mappings). The library leaves this process-wide choice to its host.
 /// A closed output pipe ends the program quietly, as it does other Unix tools (`temc info
 /// m.onnx | head`): Rust ignores SIGPIPE, so a print to a closed pipe panicked instead.
 fn exit_quietly_on_closed_pipe() {
@@ -503,6 +498,11 @@ fn exit_quietly_on_closed_pipe() {
     }
 }
 
+/// Used when a budget below the default is asked for. glibc raises its mmap threshold
+/// each time a large block is freed, after which tract's per-op tensors come from the heap
+/// and stay resident: one 832x832 TEMC-2 tile peaked at 423 MB with glibc's default and
+/// at 175 MB with a fixed 1 MB threshold, which costs about 1.6x in time (page faults on
+/// fresh mappings). The library leaves this process-wide choice to its host.
 fn limit_heap_retention() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only tunes the allocator; called before any thread starts.

@@ -49,8 +49,7 @@ def _handed_on(weights, kernel):
 
 def _spread(d, kernel):
     """Each pixel of `d` [N, C, H, W] shared evenly over its kernel's taps inside the image."""
-    n, c, h, w = d.shape
-    ones = torch.ones(1, 1, h, w, dtype=d.dtype)
+    ones = torch.ones(1, 1, *d.shape[-2:], dtype=d.dtype)
     box = lambda v: F.avg_pool2d(v, kernel, 1, kernel // 2, count_include_pad=True) * kernel ** 2  # noqa: E731
     return box(d / box(ones))
 
