@@ -66,15 +66,36 @@ pub struct Params {
     pub fixed_range: bool,
     /// The input scale (exposure) of the image, read only by the fixed range term.
     pub exposure: f32,
+    /// How the composition brings a coarse level's correction to the finer one
+    /// (`temc.upsample`).
+    pub upsample: Upsample,
 }
 
-/// How far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from the centre:
-/// r (2^L - 1) + 2^(L-1) - 1 with r = kernel / 2. The tile overlap must cover it.
-pub fn reach(levels: usize, kernel: usize) -> usize {
+/// The 2x upsampling U of the level composition (docs/reconstruction.md, step 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Upsample {
+    /// Each coarse value over its 2x2 block (`temc.upsample` = `nearest` or absent).
+    #[default]
+    Nearest,
+    /// Per axis 3/4 of the nearer coarse value and 1/4 of the next (half-pixel centres,
+    /// edges replicated), so no 2x2 steps show in flat regions; each coarse value still
+    /// hands on exactly four fine pixels' worth (`temc.upsample` = `bilinear`).
+    Bilinear,
+}
+
+/// A bound on how far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from
+/// the centre: r (2^L - 1) + 2^(L-1) - 1 with r = kernel / 2 (the sum over levels), and with
+/// bilinear composition one coarsest pixel more, 2^(L-1) - 1 (training's
+/// tests/test_reconstruct.py measures both). The tile overlap must cover it.
+pub fn reach(levels: usize, kernel: usize, upsample: Upsample) -> usize {
     if levels == 0 {
         return 0;
     }
-    (kernel / 2) * ((1usize << levels) - 1) + (1usize << (levels - 1)) - 1
+    let blend = match upsample {
+        Upsample::Nearest => 0,
+        Upsample::Bilinear => (1usize << (levels - 1)) - 1,
+    };
+    (kernel / 2) * ((1usize << levels) - 1) + (1usize << (levels - 1)) - 1 + blend
 }
 
 /// The logit channels per level for a `kernel` x `kernel` kernel: two kernels, two blends,
@@ -124,10 +145,11 @@ pub fn reconstruct(
         let (hl, wl) = (h >> l, w >> l);
         let n = hl * wl;
         let f = filters[l];
-        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl);
+        let up = p.upsample;
+        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl, up);
         for c in 0..3 {
             let (fine, coarse) = (&mut fc[c * n..][..n], &cc[c * n / 4..][..n / 4]);
-            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl);
+            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl, up);
         }
         (cy, cc) = (fy, fc);
     }
@@ -502,9 +524,8 @@ impl Scratch {
     }
 }
 
-/// In place: `fine += sigmoid(blend) * U(coarse - D(fine))` (step 4 of the spec; U repeats
-/// a coarse pixel over its 2x2 block).
-fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize) {
+/// In place: `fine += sigmoid(blend) * U(coarse - D(fine))` (step 4 of the spec).
+fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize, up: Upsample) {
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
         .expect("one coarse plane");
     let coarse = ArrayView2::from_shape(detail.dim(), coarse).expect("a coarse plane");
@@ -514,9 +535,39 @@ fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize) 
     let blend: Vec<f32> = blend.iter().map(|&b| sigmoid(b)).collect(); // one vectorised pass
     let blend = ArrayView2::from_shape((h, w), &blend).expect("a blend per fine pixel");
     let mut fine = ArrayViewMut2::from_shape((h, w), fine).expect("a fine plane");
-    Zip::indexed(&mut fine)
-        .and(blend)
-        .for_each(|(y, x), f, &b| *f += b * detail[[y / 2, x / 2]]);
+    match up {
+        Upsample::Nearest => Zip::indexed(&mut fine)
+            .and(blend)
+            .for_each(|(y, x), f, &b| *f += b * detail[[y / 2, x / 2]]),
+        Upsample::Bilinear => {
+            let (ys, xs) = (bilinear_taps(h), bilinear_taps(w));
+            Zip::indexed(&mut fine)
+                .and(blend)
+                .for_each(|(y, x), f, &b| {
+                    let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
+                    // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
+                    let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
+                    *f += b * (0.75 * row(y0) + 0.25 * row(y1));
+                })
+        }
+    }
+}
+
+/// Per fine index along an axis of `n` fine pixels: (the nearer coarse index, weight 3/4;
+/// the next one toward the fine pixel's centre, weight 1/4, replicated at the edges).
+fn bilinear_taps(n: usize) -> Vec<(usize, usize)> {
+    let last = n / 2 - 1;
+    (0..n)
+        .map(|i| {
+            let c = i / 2;
+            let next = if i % 2 == 0 {
+                c.saturating_sub(1)
+            } else {
+                (c + 1).min(last)
+            };
+            (c, next)
+        })
+        .collect()
 }
 
 /// Steps 5-7: the chroma filter's colour at the luma filter's luminance, remodulated,
@@ -629,6 +680,7 @@ mod tests {
             guide: false,
             fixed_range: false,
             exposure: 1.0,
+            upsample: Upsample::Nearest,
         }
     }
 
@@ -662,9 +714,11 @@ mod tests {
 
     #[test]
     fn reach_matches_the_spec() {
-        assert_eq!(reach(3, 5), 17);
-        assert_eq!(reach(1, 5), 2);
-        assert_eq!(reach(2, 3), 4);
+        assert_eq!(reach(3, 5, Upsample::Nearest), 17);
+        assert_eq!(reach(1, 5, Upsample::Nearest), 2);
+        assert_eq!(reach(2, 3, Upsample::Nearest), 4);
+        assert_eq!(reach(1, 5, Upsample::Bilinear), 2);
+        assert_eq!(reach(3, 5, Upsample::Bilinear), 20);
         assert_eq!((channels(5, false), channels(5, true)), (52, 54));
     }
 
@@ -1108,6 +1162,11 @@ mod tests {
                 guide: case["guide"].as_bool().unwrap_or(false),
                 fixed_range: case["fixed_range"].as_bool().unwrap_or(false),
                 exposure: case["exposure"].as_f64().unwrap_or(1.0) as f32,
+                upsample: match case["upsample"].as_str().unwrap_or("nearest") {
+                    "nearest" => Upsample::Nearest,
+                    "bilinear" => Upsample::Bilinear,
+                    other => panic!("{name}: bad upsample {other}"),
+                },
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));

@@ -209,7 +209,7 @@ fn a_firefly_does_not_reach_beyond_the_receptive_field_and_reconstruction() {
     // The network's reach, then the reconstruction's (its filters at a pixel read that far).
     let radius = info.receptive_field / 2
         + 1
-        + temc::reconstruct::reach(info.levels, info.kernel)
+        + temc::reconstruct::reach(info.levels, info.kernel, info.upsample)
         + (1 << (info.levels - 1));
     let (w, h) = (radius * 2 + 64, 48);
     let clean = smooth(w, h);

@@ -5,6 +5,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::reconstruct::Upsample;
 use crate::Error;
 
 /// The metadata format this build understands: 2 = the network predicts filters
@@ -54,6 +55,9 @@ pub struct ModelInfo {
     /// Whether the reconstruction adds the fixed range term (`temc.fixed_range`;
     /// optional, absent means no).
     pub fixed_range: bool,
+    /// How the level composition upsamples (`temc.upsample`: `nearest`, the default when
+    /// absent, or `bilinear`).
+    pub upsample: Upsample,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -131,6 +135,15 @@ impl ModelInfo {
         };
         let guide = flag("temc.guide")?;
         let fixed_range = flag("temc.fixed_range")?;
+        let upsample = match raw.get("temc.upsample").map(String::as_str) {
+            None | Some("nearest") => Upsample::Nearest,
+            Some("bilinear") => Upsample::Bilinear,
+            Some(v) => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.upsample` = {v:?} must be \"nearest\" or \"bilinear\""
+                )))
+            }
+        };
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -185,6 +198,7 @@ impl ModelInfo {
             demod_eps,
             guide,
             fixed_range,
+            upsample,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
@@ -258,6 +272,7 @@ mod tests {
             ("temc.dataset", "none"),
             ("temc.train_steps", "0"),
             ("temc.test_relmse", "none"),
+            ("temc.upsample", "nearest"),
             ("other.key", "ignored"),
         ]
     }
@@ -272,6 +287,22 @@ mod tests {
         assert_eq!(m.test_relmse, None);
         assert!(m.is_untrained());
         assert!(!m.raw.contains_key("other.key"));
+        assert_eq!(m.upsample, Upsample::Nearest);
+    }
+
+    #[test]
+    fn upsample_defaults_to_nearest_and_reads_bilinear() {
+        let without = card().into_iter().filter(|(k, _)| *k != "temc.upsample");
+        let m = ModelInfo::from_props(without).unwrap();
+        assert_eq!(m.upsample, Upsample::Nearest);
+        let with = card().into_iter().map(|(k, v)| match k {
+            "temc.upsample" => (k, "bilinear"),
+            _ => (k, v),
+        });
+        assert_eq!(
+            ModelInfo::from_props(with).unwrap().upsample,
+            Upsample::Bilinear
+        );
     }
 
     #[test]
@@ -288,6 +319,7 @@ mod tests {
             ("temc.chroma_encoding", Some("lab")),
             ("temc.aux_layout", Some("albedo3")),
             ("temc.width", Some("-1")),
+            ("temc.upsample", Some("cubic")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

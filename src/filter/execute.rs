@@ -384,6 +384,7 @@ fn denoise_tile(
         guide: info.guide,
         fixed_range: info.fixed_range,
         exposure,
+        upsample: info.upsample,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
     let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));

@@ -126,6 +126,7 @@ class Checkpoint:
         model.load_state_dict(self.model)
         model.demodulate, model.eps = r["demodulate"], r["eps"]
         model.fixed_range = r["fixed_range"]
+        model.upsample = r["upsample"]
         return model, arch, float(width)
 
     # -- writing -----------------------------------------------------------------------

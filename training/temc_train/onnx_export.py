@@ -39,7 +39,8 @@ def recon_of(model) -> dict:
     return {"levels": model.levels, "kernel": model.kernel, "split": model.split,
             "demodulate": bool(getattr(model, "demodulate", d["demodulate"])),
             "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"])),
-            "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"]))}
+            "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"])),
+            "upsample": getattr(model, "upsample", d["upsample"])}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -48,7 +49,8 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
     `tile_overlap` is the measured one (receptive.effective_overlap) for trained models; by
     default the theoretical bound (network receptive field plus reconstruction reach)."""
     if tile_overlap is None:
-        tile_overlap = receptive.tile_overlap(arch, recon["levels"], recon["kernel"])
+        tile_overlap = receptive.tile_overlap(arch, recon["levels"], recon["kernel"],
+                                              recon.get("upsample", "nearest"))
     return {
         "temc.format": "2",
         "temc.architecture": arch,
@@ -63,6 +65,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.demod_eps": repr(float(recon["eps"])),
         "temc.guide": "1" if recon.get("guide") else "0",
         "temc.fixed_range": "1" if recon.get("fixed_range") else "0",
+        "temc.upsample": recon.get("upsample", "nearest"),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

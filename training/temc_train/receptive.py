@@ -92,13 +92,13 @@ def receptive_field(arch: str) -> int:
     return measure(arch).extent
 
 
-def tile_overlap(arch: str, levels: int, kernel: int) -> int:
+def tile_overlap(arch: str, levels: int, kernel: int, upsample: str = "nearest") -> int:
     """The theoretical overlap: the network's one-sided reach (at least half its receptive
     field: footprints are not centred on their pixel) plus the reconstruction's reach, plus
     the coarsest level's block (a coarse filter pixel covers 2^(L-1) pixels), rounded up to
     the alignment. An upper bound; trained models carry the measured effective_overlap."""
     r = measure(arch)
-    need = max(math.ceil(r.extent / 2), r.reach) + reach(levels, kernel) + 2 ** (levels - 1)
+    need = max(math.ceil(r.extent / 2), r.reach) + reach(levels, kernel, upsample) + 2 ** (levels - 1)
     return int(math.ceil(need / ALIGNMENT) * ALIGNMENT)
 
 

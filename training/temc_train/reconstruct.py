@@ -31,9 +31,13 @@ def channels(kernel, guide=False):
     return 2 * kernel * kernel + (4 if guide else 2)
 
 
-def reach(levels, kernel):
-    """Pixels reached from the centre: level-l taps are 2^l apart and cover 2^l pixels."""
-    return (kernel // 2) * (2**levels - 1) + 2 ** (levels - 1) - 1
+def reach(levels, kernel, upsample="nearest"):
+    """A bound on the pixels reached from the centre: level-l taps are 2^l apart and cover
+    2^l pixels (the sum over levels; the coarsest level alone reaches (r + 1) 2^(L-1) - 1);
+    bilinear composition reads one coarsest pixel more, 2^(L-1) - 1 (measured:
+    tests/test_reconstruct.py)."""
+    blend = 2 ** (levels - 1) - 1 if upsample == "bilinear" else 0
+    return (kernel // 2) * (2**levels - 1) + 2 ** (levels - 1) - 1 + blend
 
 
 def _lum(x):
@@ -119,13 +123,25 @@ def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
 
 
-def _up(x):
+UPSAMPLES = ("nearest", "bilinear")
+
+
+def _up(x, upsample="nearest"):
+    """2x upsampling: `nearest` repeats a coarse pixel over its 2x2 block; `bilinear` weighs
+    the two nearest coarse pixels per axis 3/4 and 1/4 (half-pixel centres, edges
+    replicated), so each coarse pixel still hands on exactly four fine pixels' worth."""
+    if upsample == "bilinear":
+        return F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
+    if upsample != "nearest":
+        raise ValueError(f"upsample must be one of {UPSAMPLES}, got {upsample!r}")
     return x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
 
 
-def _compose(fine, coarse, blend):
-    """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies."""
-    return fine + torch.sigmoid(blend) * (_up(coarse) - _up(F.avg_pool2d(fine, 2)))
+def _compose(fine, coarse, blend, upsample="nearest"):
+    """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies.
+    The correction, not each term, is upsampled: with `bilinear` the coarse level's blocks
+    no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4)."""
+    return fine + torch.sigmoid(blend) * _up(coarse - F.avg_pool2d(fine, 2), upsample)
 
 
 def _recombine(cy, cc):
@@ -141,12 +157,13 @@ def _recombine(cy, cc):
 
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
-                fixed_range=False, scale=1.0):
+                fixed_range=False, scale=1.0, upsample="nearest"):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
     the exposure that puts `rgb` at a log-mean near 0.18 (1 for training crops, which come
-    scaled), read only by that term."""
+    scaled), read only by that term. `upsample`: how the composition brings a coarse
+    level's correction to the finer one (UPSAMPLES; `temc.upsample`)."""
     for level, f in enumerate(filters):
         want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
@@ -160,7 +177,7 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
         levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
-        cy, cc = _compose(fy, cy, a), _compose(fc, cc, b)
+        cy, cc = _compose(fy, cy, a, upsample), _compose(fc, cc, b, upsample)
     out = _recombine(cy, cc)
     if demodulate:
         out = out * d
@@ -187,6 +204,7 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
     out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"], recon["demodulate"],
                       recon["eps"], guide=recon.get("guide", False),
-                      fixed_range=recon.get("fixed_range", False), scale=scale)
+                      fixed_range=recon.get("fixed_range", False), scale=scale,
+                      upsample=recon.get("upsample", "nearest"))
     out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
     return keep_mean_stage(out, radiance) if keep else out

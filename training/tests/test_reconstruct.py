@@ -61,7 +61,56 @@ def lum(x):
 
 def test_reach_and_channels():
     assert reach(3, 5) == 17 and reach(1, 5) == 2 and reach(2, 3) == 4
+    assert reach(3, 5, "bilinear") == 20 and reach(1, 5, "bilinear") == 2
     assert channels(5) == 52
+
+
+@pytest.mark.parametrize("upsample", ["nearest", "bilinear"])
+@pytest.mark.parametrize("levels,kernel", [(2, 3), (3, 5)])
+def test_an_impulse_reaches_no_farther_than_reach_says(levels, kernel, upsample):
+    """The tile overlap rests on reach: measured over every phase of the coarsest block, an
+    impulse moves no output farther; bilinear reaches 2^(L-1) - 1 px past nearest."""
+    gen = torch.Generator().manual_seed(11)
+    n = 64
+    f = [x.double() for x in random_filters(gen, 1, n, n, levels, kernel, 1.0)]
+    base = torch.rand(1, 3, n, n, generator=gen, dtype=torch.float64) + 0.5
+
+    def farthest(up):
+        far = 0
+        for phase in range(2 ** (levels - 1)):
+            cy = cx = n // 2 + phase
+            bumped = base.clone()
+            bumped[0, :, cy, cx] += 1.0
+            d = reconstruct(bumped, None, f, kernel, upsample=up) - reconstruct(base, None, f, kernel, upsample=up)
+            ys, xs = np.nonzero(d[0].abs().amax(0).numpy() > 1e-12)
+            far = max(far, int(np.maximum(np.abs(ys - cy), np.abs(xs - cx)).max()))
+        return far
+
+    assert farthest(upsample) <= reach(levels, kernel, upsample)
+    if upsample == "bilinear":
+        assert farthest("bilinear") - farthest("nearest") == 2 ** (levels - 1) - 1
+
+
+@pytest.mark.parametrize("blend", [-2.0, 0.0, 30.0])
+def test_bilinear_composition_keeps_the_mean_and_shows_no_block_steps(blend):
+    """Each coarse pixel hands on four fine pixels' worth (edges replicated), so the image's
+    mean moves to the coarse level's as with nearest; a coarse ramp arrives as a ramp, where
+    nearest leaves 2x2 steps."""
+    from temc_train.reconstruct import _compose
+    gen = torch.Generator().manual_seed(5)
+    fine = torch.rand(1, 1, 16, 12, generator=gen, dtype=torch.float64)
+    coarse = torch.rand(1, 1, 8, 6, generator=gen, dtype=torch.float64)
+    b = torch.full((1, 1, 16, 12), blend, dtype=torch.float64)
+    s = torch.sigmoid(torch.tensor(blend, dtype=torch.float64))
+    for up in ("nearest", "bilinear"):
+        got = _compose(fine, coarse, b, up).mean()
+        assert torch.allclose(got, fine.mean() + s * (coarse.mean() - fine.mean()), rtol=1e-12)
+    ramp = torch.arange(8, dtype=torch.float64).view(1, 1, 8, 1).expand(1, 1, 8, 6)
+    flat = torch.zeros(1, 1, 16, 12, dtype=torch.float64)
+    up = _compose(flat, ramp, torch.full_like(flat, 30.0), "bilinear")[0, 0, 1:-1, 0]
+    assert torch.allclose(up.diff(), torch.full((13,), 0.5, dtype=torch.float64))
+    steps = _compose(flat, ramp, torch.full_like(flat, 30.0), "nearest")[0, 0, 1:-1, 0].diff()
+    assert set(steps.round(decimals=6).tolist()) == {0.0, 1.0}
 
 
 def test_zero_logits_at_one_level_are_a_box_filter_renormalised_at_the_border():

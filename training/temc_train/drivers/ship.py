@@ -174,6 +174,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
            + (f" from step {ck['fixed_range_from_step']:,}, " if ck.get("fixed_range_from_step")
               else " (added at shipping; not seen in training), ")
            if recon.get("fixed_range") else "")
+        + ("bilinear composition of the levels"
+           + (f" from step {ck['upsample_from_step']:,}, " if ck.get("upsample_from_step") else ", ")
+           if recon.get("upsample") == "bilinear" else "")
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
         "keep-mean stage (docs/keep-mean.md; not seen in training) |",
@@ -270,6 +273,7 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
             "dark_from_step": st.get("dark_from_step"),
             "fixed_range_from_step": st.get("fixed_range_from_step"),
+            "upsample_from_step": st.get("upsample_from_step"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}
 

@@ -54,7 +54,7 @@ from .. import data
 from ..checkpoint import CHECKPOINT_LIMIT, Checkpoint  # noqa: F401  (CHECKPOINT_LIMIT: re-exported)
 from ..loss import ALPHA, noise2noise_loss, training_loss
 from ..models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params  # noqa: F401
-from ..reconstruct import reconstruct
+from ..reconstruct import UPSAMPLES, reconstruct
 from . import shard
 from .distributed import Group
 
@@ -63,7 +63,7 @@ def recon_settings(a) -> dict:
     """The reconstruction a run trains for; stored in its checkpoints and exported."""
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
-            "fixed_range": bool(a.fixed_range)}
+            "fixed_range": bool(a.fixed_range), "upsample": a.upsample}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -74,7 +74,8 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
         filters = model(*xs[:3])
     return reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
                        rs["eps"], guide=rs.get("guide", False),
-                       fixed_range=rs.get("fixed_range", False))
+                       fixed_range=rs.get("fixed_range", False),
+                       upsample=rs.get("upsample", "nearest"))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -354,6 +355,11 @@ def resume_model(a, model, ckpt_path, rs):
         held_recon["fixed_range"] = rs["fixed_range"]
         ck.recon = dict(ck.recon, fixed_range=rs["fixed_range"])
         ck.state["fixed_range_from_step"] = ck.state["step"]
+    if held_recon["upsample"] != rs["upsample"]:
+        # Also fixed (the composition's interpolation, no weights): switchable at any step.
+        held_recon["upsample"] = rs["upsample"]
+        ck.recon = dict(ck.recon, upsample=rs["upsample"])
+        ck.state["upsample_from_step"] = ck.state["step"]
     held = (ck.arch, ck.width, held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
@@ -603,6 +609,9 @@ def main(argv=None):
                     help="add the fixed range term on opened log luminance, which keeps lamps' "
                          "energy out of their dark neighbours (docs/reconstruction.md); a run "
                          "may switch it at any step")
+    ap.add_argument("--upsample", choices=UPSAMPLES, default="nearest",
+                    help="how the level composition upsamples a coarse level's correction "
+                         "(docs/reconstruction.md, step 4); a run may switch it on resume")
     ap.add_argument("--run", "--run-dir", dest="run", required=True,
                     help="folder for checkpoints and the log (--run-dir: the same, for torchrun, "
                          "whose own parser takes --run for an abbreviation of its --run-path)")

@@ -14,7 +14,8 @@ guides and the fixed term kept: what the range terms alone do); `box` (all of th
 plain 5x5 box per level, blends as trained); `conserve` (as trained, then the light each
 input pixel's weights do not hand on, (1 - its weights' column sum) times its value, spread
 evenly over its kernel's taps inside the image: every input pixel then gives exactly its
-light, a sketch of the splatting form, done here only).
+light, a sketch of the splatting form, done here only); `conserve-own` (the same light
+splatted by the pixel's own gather weights instead of evenly). `--variants` picks some.
 
     python -m temc_train.probes.dark_probe --train-conserving -- TRAIN-ARGS
 
@@ -37,7 +38,7 @@ from ..reconstruct import LUMA
 from .probe import denoise
 
 DARK_SHARE = 0.25
-VARIANTS = ("trained", "no-guide", "no-fixed", "flat", "box", "conserve")
+VARIANTS = ("trained", "no-guide", "no-fixed", "flat", "box", "conserve", "conserve-own")
 
 
 def _handed_on(weights, kernel):
@@ -63,11 +64,29 @@ def _conserving_level(x, logits, kernel, guide=False, fixed_range=False, scale=1
     return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]
 
 
+def _splat(d, weights, kernel):
+    """Each pixel of `d` [N, C, H, W] scattered to its taps by its own gather weights
+    [N, k^2, H, W] (which sum to one over the taps inside: nothing leaves the image)."""
+    n, c, h, w = d.shape
+    cols = (d.unsqueeze(2) * weights.unsqueeze(1)).reshape(n, c * kernel * kernel, h * w)
+    return F.fold(cols, (h, w), kernel, padding=kernel // 2)
+
+
+def _conserving_own_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+    """As _conserving_level, the unhanded light splatted by the pixel's own kernel (toward
+    the neighbours its guides call alike) instead of a box."""
+    kk = kernel * kernel
+    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale)
+    fy = rc._apply(y, luma_w, kernel) + _splat((1 - _handed_on(luma_w, kernel)) * y, luma_w, kernel)
+    fc = rc._apply(x, chroma_w, kernel) + _splat((1 - _handed_on(chroma_w, kernel)) * x, chroma_w, kernel)
+    return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]
+
+
 @contextlib.contextmanager
-def conserving():
-    """reconstruct.py's level filter swapped for `_conserving_level` while inside."""
+def conserving(level=None):
+    """reconstruct.py's level filter swapped for `level` (`_conserving_level`) while inside."""
     held = rc._filter_level
-    rc._filter_level = _conserving_level
+    rc._filter_level = level or _conserving_level
     try:
         yield
     finally:
@@ -112,7 +131,8 @@ def run(model, recon, scenes, variant, spps):
             if spp not in spps:
                 continue
             ref = sc.a["reference"]
-            with conserving() if variant == "conserve" else contextlib.nullcontext():
+            level = {"conserve": _conserving_level, "conserve-own": _conserving_own_level}.get(variant)
+            with conserving(level) if level else contextlib.nullcontext():
                 kept = denoise(switched, recon, sc, s, keep=True)
                 raw = denoise(switched, recon, sc, s, keep=False)
             res.setdefault(spp, []).append((evaluate.relmse(kept, ref), dark_ratio(raw, ref),
@@ -134,6 +154,7 @@ def main(argv=None):
     ap.add_argument("--checkpoint", required=True)
     ap.add_argument("--spp", default="4,16,64")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated, of VARIANTS")
     ap.add_argument("--fixed-range", type=int, choices=(0, 1), default=None,
                     help="the fixed range term on or off (default: as the checkpoint trained; "
                          "shipped models have it on, ship.SHIP_RECON)")
@@ -152,7 +173,7 @@ def main(argv=None):
           "dark: their light over the reference's (raw: before keep-mean; kept: after)\n")
     print("| variant | spp | RelMSE | dark raw | dark kept | noisy input's dark |")
     print("|---|---:|---:|---:|---:|---:|")
-    for variant in VARIANTS:
+    for variant in a.variants.split(","):
         for spp, (rel, raw, kept) in sorted(run(model, recon, scenes, variant, spps).items()):
             print(f"| {variant} | {spp} | {rel:.4g} | {raw:.3f} | {kept:.3f} | {noisy[spp]:.3f} |",
                   flush=True)

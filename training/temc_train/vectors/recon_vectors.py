@@ -22,7 +22,7 @@ SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
 def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
-          fixed_range=False, exposure=1.0):
+          fixed_range=False, exposure=1.0, upsample="nearest"):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -32,7 +32,7 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
-                rgb=rgb, albedo=albedo if demodulate else None,
+                upsample=upsample, rgb=rgb, albedo=albedo if demodulate else None,
                 filters=filters)
 
 
@@ -93,6 +93,15 @@ def cases():
                      exposure=3.0))
     out.append(_case("fixed_demod_8x8_L3_k3", rng, 8, 8, 3, 3, demodulate=True, fixed_range=True,
                      exposure=0.25))
+    # Bilinear composition: odd coarse sizes (edges replicated on both sides), the full
+    # shipped recipe, and a lamp whose coarse correction must spread, not step.
+    out.append(_case("bilinear_16x8_L2_k3", rng, 16, 8, 2, 3, upsample="bilinear"))
+    out.append(_case("bilinear_24x8_L3_k5", rng, 24, 8, 3, 5, sd=1.0, upsample="bilinear"))
+    out.append(_case("bilinear_full_16x16_L3_k5", rng, 16, 16, 3, 5, guide=True,
+                     fixed_range=True, exposure=0.5, upsample="bilinear"))
+    c = _case("bilinear_lamp_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, upsample="bilinear")
+    c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
+    out.append(c)
     return out
 
 
@@ -102,7 +111,7 @@ def run(case, dtype):
     albedo = None if case["albedo"] is None else t(case["albedo"])
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
-                      case["fixed_range"], case["exposure"])
+                      case["fixed_range"], case["exposure"], case["upsample"])
     return out[0].double().numpy()
 
 
