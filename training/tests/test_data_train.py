@@ -195,6 +195,15 @@ def test_a_run_grows_coarser_levels_on_resume_and_starts_near_its_output(dataset
     assert ck["state"]["step"] == 5 and ck["opt"] is not None
     with pytest.raises(SystemExit):  # and it does not shrink back
         train.main(args + ["--levels", "2", "--max-steps", "6"])
+    # --blend-logit opens the finest blend once: a later resume with it trains on.
+    train.main(args + ["--levels", "3", "--max-steps", "6", "--blend-logit", "-1"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["state"]["blend_reset"] == [5, -1.0]
+    moved = ck["model"]["decoder.heads.convs.0.bias"][50:52]
+    assert torch.all((moved + 1.0).abs() < 0.01) and torch.any(moved != -1.0), moved
+    train.main(args + ["--levels", "3", "--max-steps", "7", "--blend-logit", "-1"])
+    ck = torch.load(os.path.join(run, "checkpoint.pt"), weights_only=False)
+    assert ck["state"]["blend_reset"] == [5, -1.0]  # not set again at step 6
 
 
 def test_a_non_finite_step_is_skipped_not_taken(dataset, tmp_path, monkeypatch):

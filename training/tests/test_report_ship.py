@@ -366,3 +366,26 @@ def test_dark_probe_conserving_level_hands_on_every_input_pixels_light():
     assert float(fc.sum()) == pytest.approx(float(x.sum()), rel=1e-5)
     assert float(fy.sum()) == pytest.approx(float(rc._lum(x).sum()), rel=1e-5)
     assert abs(float(gc.sum()) / float(x.sum()) - 1) > 1e-3  # gathering does not
+    from temc_train.probes.dark_probe import _conserving_own_level
+    oy, oc, *_ = _conserving_own_level(x, logits, 5, True, True, 1.0)
+    assert float(oc.sum()) == pytest.approx(float(x.sum()), rel=1e-5)
+    assert float(oy.sum()) == pytest.approx(float(rc._lum(x).sum()), rel=1e-5)
+
+
+def test_blends_probe_reads_every_level_but_the_coarsest():
+    import numpy as np
+    import torch
+    import types
+    from temc_train.drivers.train import set_finest_blend
+    from temc_train.models import build
+    from temc_train.probes.blends import blends
+    model = build("temc2", 0.0625, 3, 5, "both", True).eval()
+    set_finest_blend(model, 5, -2.0)  # the heads start at zero: the logits are the biases
+    g = np.random.default_rng(0)
+    img = lambda c: g.random((1, 40, 36, c), dtype=np.float32)  # noqa: E731 (cropped to 32)
+    scene = types.SimpleNamespace(a={"color": img(3), "albedo": img(3), "normal": img(3) - 0.5,
+                                     "depth": img(1)[..., 0]}, scale=[1.0])
+    got = blends(model, scene, 0)
+    assert len(got) == 2
+    assert got[0] == pytest.approx((1 / (1 + np.exp(2.0)),) * 2, rel=1e-5)
+    assert got[1] == pytest.approx((0.5, 0.5))

@@ -164,6 +164,8 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s)"
         + (f" (grown from {ck['levels_from'][1]} at step {ck['levels_from'][0]:,}: train.add_levels)"
            if ck.get("levels_from") else "")
+        + (f" (the finest blend biases set to {ck['blend_reset'][1]:g} at step {ck['blend_reset'][0]:,}:"
+           " train --blend-logit)" if ck.get("blend_reset") else "")
         + f" of {recon['kernel']}x{recon['kernel']} "
         f"{'luma and chroma kernels' if recon['split'] == 'both' else 'kernels (one for luma and chroma)'}, "
         f"demodulation {'on' if recon['demodulate'] else 'off'}, "
@@ -273,7 +275,7 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
             "dark_from_step": st.get("dark_from_step"),
             "fixed_range_from_step": st.get("fixed_range_from_step"),
-            "upsample_from_step": st.get("upsample_from_step"),
+            "upsample_from_step": st.get("upsample_from_step"), "blend_reset": st.get("blend_reset"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}
 

@@ -161,14 +161,21 @@ def add_levels(model, ck) -> None:
     own = model.state_dict()
     own.update(ck.model)
     model.load_state_dict(own)
-    n = ck.recon["kernel"] ** 2
-    with torch.no_grad():
-        heads[0].convs[0].bias[2 * n:2 * n + 2] = GROWN_BLEND_LOGIT
+    set_finest_blend(model, ck.recon["kernel"], GROWN_BLEND_LOGIT)
     if ck.opt is not None:
         index = {name: i for i, name in enumerate(new_names)}
         ck.opt["state"] = {index[old_names[int(i)]]: st for i, st in ck.opt["state"].items()}
         ck.opt["param_groups"][0]["params"] = list(range(len(new_names)))
     ck.recon = dict(ck.recon, levels=model.levels)
+
+
+def set_finest_blend(model, kernel: int, logit: float) -> None:
+    """Sets the biases of the finest level's luma and chroma blend logits (how much of the
+    coarser levels' low frequencies it takes: sigmoid of the logit)."""
+    heads = [m for m in model.modules() if isinstance(m, FilterHeads)]
+    n = kernel * kernel
+    with torch.no_grad():
+        heads[0].convs[0].bias[2 * n:2 * n + 2] = logit
 
 
 LR_FLOOR = 0.05
@@ -374,6 +381,10 @@ def resume_model(a, model, ckpt_path, rs):
         print(f"{ckpt_path}: growing from {from_levels} to {a.levels} levels", flush=True)
     else:
         model.load_state_dict(ck.model)
+    if a.blend_logit is not None and (ck.state.get("blend_reset") or [None, None])[1] != a.blend_logit:
+        set_finest_blend(model, ck.recon["kernel"], a.blend_logit)
+        ck.state["blend_reset"] = [ck.state["step"], a.blend_logit]
+        print(f"{ckpt_path}: the finest level's blend biases set to {a.blend_logit:g}", flush=True)
     return ck
 
 
@@ -609,6 +620,10 @@ def main(argv=None):
                     help="add the fixed range term on opened log luminance, which keeps lamps' "
                          "energy out of their dark neighbours (docs/reconstruction.md); a run "
                          "may switch it at any step")
+    ap.add_argument("--blend-logit", type=float, default=None,
+                    help="on resume, set the finest level's blend biases to this once (a grown "
+                         "run starts them at GROWN_BLEND_LOGIT, where lr-limited steps leave them "
+                         "for CPU-hours); recorded in the checkpoint as blend_reset")
     ap.add_argument("--upsample", choices=UPSAMPLES, default="nearest",
                     help="how the level composition upsamples a coarse level's correction "
                          "(docs/reconstruction.md, step 4); a run may switch it on resume")
