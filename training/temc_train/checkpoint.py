@@ -143,14 +143,16 @@ class Checkpoint:
 
     def write(self, path: str, limit: int = CHECKPOINT_LIMIT) -> None:
         """Saves atomically. A training checkpoint refuses non-finite weights (the last one
-        on disk is kept) and is saved again without Adam's moments when over `limit`."""
+        on disk is kept) and is saved again without Adam's moments when over `limit`, its
+        state saying why (`opt_dropped`: a resume starts the moments afresh)."""
         d = self.to_dict()
         if self.training:
             if not all(torch.isfinite(v).all() for v in self.model.values() if v.is_floating_point()):
                 raise SystemExit(f"{path}: non-finite weights; the last checkpoint is kept")
         save_atomic(d, path)
         if self.training and os.path.getsize(path) > limit:
-            save_atomic(dict(d, opt=None), path)
+            save_atomic(dict(d, opt=None, state=dict(d["state"], opt_dropped=f"over {limit} bytes")),
+                        path)
 
 
 def load_checkpoint(path: str, arch=None, width=None):

@@ -157,13 +157,15 @@ def test_a_large_checkpoint_drops_the_moments(tmp_path):
     ck.write(path, limit=10**9)
     assert torch.load(path, weights_only=True)["opt"] is not None
     ck.write(path, limit=1000)
-    assert torch.load(path, weights_only=True)["opt"] is None and ck.opt is not None
+    saved = torch.load(path, weights_only=True)
+    assert saved["opt"] is None and saved["state"]["opt_dropped"] and ck.opt is not None
 
 
 @pytest.mark.parametrize("run", sorted(glob.glob(os.path.join(RUNS, "*", "checkpoint.pt"))),
                          ids=lambda p: os.path.basename(os.path.dirname(p)))
 def test_committed_runs_read_as_training_checkpoints(run):
     ck = Checkpoint.read(run)
-    assert ck.training and ck.steps > 0 and ck.opt is not None
+    # Adam's moments may be left out only on record (opt_dropped): a resume restarts them.
+    assert ck.training and ck.steps > 0 and (ck.opt is not None or ck.state.get("opt_dropped"))
     assert set(ck.recon) == set(RECON_DEFAULTS) and ck.info()["train_steps"] == ck.steps
     assert list(ck.to_dict()) == TRAINING_KEYS
