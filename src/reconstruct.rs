@@ -83,6 +83,17 @@ pub enum Upsample {
     Bilinear,
 }
 
+impl Upsample {
+    /// The composition a `temc.upsample` value names: `nearest` or `bilinear`.
+    pub fn from_name(name: &str) -> Option<Upsample> {
+        match name {
+            "nearest" => Some(Upsample::Nearest),
+            "bilinear" => Some(Upsample::Bilinear),
+            _ => None,
+        }
+    }
+}
+
 /// A bound on how far (in pixels) `levels` levels of `kernel` x `kernel` kernels reach from
 /// the centre: r (2^L - 1) + 2^(L-1) - 1 with r = kernel / 2 (the sum over levels), and with
 /// bilinear composition one coarsest pixel more, 2^(L-1) - 1 (training's
@@ -1162,10 +1173,9 @@ mod tests {
                 guide: case["guide"].as_bool().unwrap_or(false),
                 fixed_range: case["fixed_range"].as_bool().unwrap_or(false),
                 exposure: case["exposure"].as_f64().unwrap_or(1.0) as f32,
-                upsample: match case["upsample"].as_str().unwrap_or("nearest") {
-                    "nearest" => Upsample::Nearest,
-                    "bilinear" => Upsample::Bilinear,
-                    other => panic!("{name}: bad upsample {other}"),
+                upsample: {
+                    let u = case["upsample"].as_str().unwrap_or("nearest");
+                    Upsample::from_name(u).unwrap_or_else(|| panic!("{name}: bad upsample {u}"))
                 },
             };
             let rgb = json_vec(&case["rgb"]);

@@ -135,14 +135,13 @@ impl ModelInfo {
         };
         let guide = flag("temc.guide")?;
         let fixed_range = flag("temc.fixed_range")?;
-        let upsample = match raw.get("temc.upsample").map(String::as_str) {
-            None | Some("nearest") => Upsample::Nearest,
-            Some("bilinear") => Upsample::Bilinear,
-            Some(v) => {
-                return Err(Error::Model(format!(
+        let upsample = match raw.get("temc.upsample") {
+            None => Upsample::Nearest,
+            Some(v) => Upsample::from_name(v).ok_or_else(|| {
+                Error::Model(format!(
                     "metadata `temc.upsample` = {v:?} must be \"nearest\" or \"bilinear\""
-                )))
-            }
+                ))
+            })?,
         };
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {

@@ -112,18 +112,6 @@ impl BlockCache {
         Some(slot.addr as *mut u8)
     }
 
-    /// The block's real layout: the lent block's own where `ptr` is one.
-    fn real_layout(&self, t: &mut Table, ptr: *mut u8, layout: Layout) -> Layout {
-        match t.lent.iter().position(|s| s.addr == ptr as usize) {
-            Some(j) => {
-                let s = std::mem::replace(&mut t.lent[j], EMPTY);
-                // SAFETY: the layout the block was allocated with.
-                unsafe { Layout::from_size_align_unchecked(s.size, s.align) }
-            }
-            None => layout,
-        }
-    }
-
     /// Frees a block: keeps it, or gives it back to the system.
     fn release(&self, ptr: *mut u8, layout: Layout) {
         if layout.size() < MIN_BLOCK {
@@ -131,7 +119,7 @@ impl BlockCache {
             return unsafe { System.dealloc(ptr, layout) };
         }
         let mut t = self.lock();
-        let layout = self.real_layout(&mut t, ptr, layout);
+        let layout = t.return_lent(ptr).unwrap_or(layout);
         if layout.size() <= t.cap {
             t.evict_to(layout.size());
             if let Some(i) = t.slots.iter().position(|s| s.addr == 0) {
@@ -158,6 +146,14 @@ impl Default for BlockCache {
 }
 
 impl Table {
+    /// The layout a lent block was allocated with, where `ptr` is one (it is no longer lent).
+    fn return_lent(&mut self, ptr: *mut u8) -> Option<Layout> {
+        let j = self.lent.iter().position(|s| s.addr == ptr as usize)?;
+        let s = std::mem::replace(&mut self.lent[j], EMPTY);
+        // SAFETY: the layout the block was allocated with.
+        Some(unsafe { Layout::from_size_align_unchecked(s.size, s.align) })
+    }
+
     /// Frees the oldest blocks until `room` more bytes fit under the cap and a slot is free.
     fn evict_to(&mut self, room: usize) {
         loop {
@@ -185,9 +181,11 @@ impl Table {
     }
 }
 
-// SAFETY: every block handed out is either fresh from System or a kept block of exactly
-// the requested size and alignment that was freed and is owned by nobody else; every block
-// freed goes either back to System with its own layout or into the table.
+// SAFETY: every block handed out is either fresh from System or a kept block, freed and owned
+// by nobody else, at least the requested size (at most twice it) at an address of the
+// requested alignment; one larger than asked, or of another alignment, is recorded as lent,
+// and every block freed goes back to System with the layout it was allocated with, or into
+// the table.
 unsafe impl GlobalAlloc for BlockCache {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         match self.take(layout) {
@@ -214,8 +212,13 @@ unsafe impl GlobalAlloc for BlockCache {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if layout.size() < MIN_BLOCK && new_size < MIN_BLOCK {
-            // SAFETY: the caller's contract passes through; small blocks are never kept.
+        // A block that is not lent is System's with exactly `layout`, so System may resize it
+        // (glibc moves large blocks with mremap, without copying). A lent one is bigger than
+        // `layout` says: it moves, and its free returns the whole block.
+        let lent =
+            layout.size() >= MIN_BLOCK && self.lock().lent.iter().any(|s| s.addr == ptr as usize);
+        if !lent {
+            // SAFETY: the caller's contract passes through for System's own block.
             return unsafe { System.realloc(ptr, layout, new_size) };
         }
         // SAFETY: the caller guarantees new_size and the alignment form a valid layout.
@@ -238,6 +241,13 @@ mod tests {
 
     fn big(n: usize) -> Layout {
         Layout::from_size_align(n, 64).unwrap()
+    }
+
+    /// Whether the first `n` bytes at `p` are zero.
+    unsafe fn zero(p: *const u8, n: usize) -> bool {
+        unsafe { std::slice::from_raw_parts(p, n) }
+            .iter()
+            .all(|&b| b == 0)
     }
 
     #[test]
@@ -283,6 +293,30 @@ mod tests {
     }
 
     #[test]
+    fn a_lent_block_keeps_its_bytes_when_resized_and_returns_whole() {
+        let c = BlockCache::new();
+        c.enable(8 * MIN_BLOCK);
+        unsafe {
+            let a = c.alloc(big(4 * MIN_BLOCK));
+            c.dealloc(a, big(4 * MIN_BLOCK));
+            let b = c.alloc(big(3 * MIN_BLOCK));
+            assert_eq!(b, a);
+            b.write_bytes(5, 3 * MIN_BLOCK);
+            let g = c.realloc(b, big(3 * MIN_BLOCK), 2 * MIN_BLOCK);
+            assert!(std::slice::from_raw_parts(g, 2 * MIN_BLOCK)
+                .iter()
+                .all(|&x| x == 5));
+            assert_eq!(
+                c.lock().held,
+                4 * MIN_BLOCK,
+                "the lent block came back whole"
+            );
+            c.dealloc(g, big(2 * MIN_BLOCK));
+        }
+        c.enable(0);
+    }
+
+    #[test]
     fn the_cap_lets_the_oldest_blocks_go() {
         let c = BlockCache::new();
         c.enable(3 * MIN_BLOCK);
@@ -320,13 +354,9 @@ mod tests {
             c.dealloc(a, big(MIN_BLOCK));
             let z = c.alloc_zeroed(big(MIN_BLOCK));
             assert_eq!(z, a);
-            assert!(std::slice::from_raw_parts(z, MIN_BLOCK)
-                .iter()
-                .all(|&b| b == 0));
+            assert!(zero(z, MIN_BLOCK));
             let g = c.realloc(z, big(MIN_BLOCK), 2 * MIN_BLOCK);
-            assert!(std::slice::from_raw_parts(g, MIN_BLOCK)
-                .iter()
-                .all(|&b| b == 0));
+            assert!(zero(g, MIN_BLOCK));
             c.dealloc(g, big(2 * MIN_BLOCK));
         }
         c.enable(0);
