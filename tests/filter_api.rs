@@ -7,7 +7,7 @@ mod common;
 
 use common::{device, test_model as model_file};
 use temc::color;
-use temc::filter::{filter_type_for, Filter};
+use temc::filter::{filter_type_for, Filter, Quality};
 use temc::Error;
 
 fn weights() -> Vec<u8> {
@@ -288,10 +288,10 @@ fn a_constant_image_stays_constant() {
 }
 
 #[test]
-fn the_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
-    // The shipped model's overlap is its measured effective reach (an impulse's effect
+fn each_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
+    // A shipped model's overlap is its measured effective reach (an impulse's effect
     // below 1e-4 of its size), not half its theoretical receptive field: tiled and untiled
-    // must still agree within 1e-3 in PQ on a noisy image.
+    // must still agree within 1e-3 in PQ on a noisy image, for every quality mode.
     let (w, h) = (520, 330);
     let mut s = 0x2545_f491_4f6c_dd1du64;
     let img: Vec<f32> = image(w, h)
@@ -305,25 +305,29 @@ fn the_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
         })
         .collect();
     let dev = device(2);
-    let run = |tile: usize| {
+    let run = |quality: Quality, tile: usize| {
         let mut out = vec![0f32; w * h * 3];
         let mut f = Filter::new(&dev, "TEMC2").unwrap();
         f.set_input_f32("color", &img, w, h).unwrap();
         f.set_output_f32(&mut out, w, h).unwrap();
         f.set_input_scale(1.0).unwrap();
+        f.set_quality(quality);
         f.set_tile_size(tile);
         f.commit().unwrap();
         let tiles = f.execute().unwrap().tiles;
         drop(f);
         (out, tiles)
     };
-    let (untiled, one) = run(4096);
-    let (tiled, many) = run(48);
-    assert_eq!(one, 1);
-    assert!(many > 8, "{many} tiles");
-    let d = max_pq_diff(&untiled, &tiled);
-    println!("built-in model: max PQ difference, untiled vs 48-pixel tiles: {d:e}");
-    assert!(d <= 1e-3, "{d}");
+    for q in [Quality::Fast, Quality::Balanced, Quality::High] {
+        let (untiled, one) = run(q, 4096);
+        let (tiled, many) = run(q, 48);
+        assert_eq!(one, 1);
+        // A wider overlap makes the planner's tiles larger: fast's 160 px leaves 4.
+        assert!(many >= 4, "{q:?}: {many} tiles");
+        let d = max_pq_diff(&untiled, &tiled);
+        println!("{q:?}: max PQ difference, untiled vs 48-pixel tiles: {d:e}");
+        assert!(d <= 1e-3, "{q:?}: {d}");
+    }
 }
 
 /// A new frame's images need another commit; with the same weights it reuses the parsed

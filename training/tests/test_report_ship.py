@@ -307,6 +307,26 @@ def test_card_says_how_the_training_set_grew_and_what_the_last_session_had():
     assert ship.scenes_seen({"train_scenes": 40}, {"train": 50}).endswith("(the set was still rendering)")
 
 
+def test_card_names_a_test_split_rendered_alone(tmp_path):
+    """`temc-render dataset --split test` renders the scenes that measure a model: the card
+    must not count that set's (absent) training scenes as the data set's."""
+    scenes = [{"split": "test"}] * 3
+    opts = {"size": 128, "spp": [4, 16], "ref_spp": 512}
+    (tmp_path / "manifest.json").write_text(json.dumps({"scenes": scenes, "options": opts}))
+    facts = ship.data_facts(str(tmp_path))
+    assert facts["train"] is None and "its test split, 3 scenes" in facts["text"]
+    assert "--split test" in facts["text"]
+    scenes += [{"split": "train"}] * 2
+    (tmp_path / "manifest.json").write_text(json.dumps({"scenes": scenes, "options": opts}))
+    facts = ship.data_facts(str(tmp_path))
+    assert facts["train"] == 2 and facts["text"].startswith("2 training, 0 validation, 3 test")
+
+
+def test_labels_name_the_levels_of_a_pyramid():
+    assert models.label("temc2", 0.125) == "TEMC-2 w0.125"
+    assert models.label("temc2", "0.125", "3") == "TEMC-2 w0.125, 3 levels"
+
+
 def test_report_refuses_a_mock_matplotlib(monkeypatch):
     """colour-science leaves a MagicMock in sys.modules["matplotlib"] when matplotlib is
     missing (issue 34): the report must say so, not draw with the mock."""

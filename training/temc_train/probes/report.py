@@ -31,14 +31,10 @@ PAGE = {"title": "Accuracy against time", "command": "scripts/accuracy-report", 
 
 
 def model_label(temc, path):
-    """(name, metadata) of an ONNX model; the name is models.label's, as on its model card,
-    with the pyramid levels where there are several (a 3-level candidate beside the
-    1-level model of the same width would otherwise share its name and its rows)."""
+    """(name, metadata) of an ONNX model; the name is models.label's, as on its model card."""
     r = subprocess.run([temc, "info", path, "--json"], capture_output=True, text=True, check=True)
     meta = json.loads(r.stdout)
-    name = label(meta["temc.architecture"], meta["temc.width"])
-    levels = int(meta.get("temc.levels", "1"))
-    return (name if levels == 1 else f"{name}, {levels} levels"), meta
+    return label(meta["temc.architecture"], meta["temc.width"], meta.get("temc.levels", "1")), meta
 
 
 def distinct_labels(names, paths):

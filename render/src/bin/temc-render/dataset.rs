@@ -94,6 +94,12 @@ pub struct Args {
     /// caustic-fireflies and fine-texture; one per scene by a hash of its seed).
     #[arg(long, default_value = "v2", value_name = "v2|all")]
     families: Families,
+    /// Render only the scenes of this split (train, val or test), each exactly as a whole
+    /// run renders it: a test split alone, for measuring shipped models, costs about an
+    /// eighth of the set. The manifest lists what has been rendered; a later run without
+    /// the option renders the rest into the same folder.
+    #[arg(long, value_parser = ["train", "val", "test"])]
+    split: Option<String>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -113,6 +119,7 @@ pub fn main(a: Args, cancel: &AtomicBool) -> Result<(), String> {
         start: a.start,
         weak_share: a.weak_share,
         families: a.families,
+        only_split: a.split,
     };
     let (size, out, part) = (a.size, a.out, a.part);
     let t = Instant::now();
@@ -191,6 +198,10 @@ pub struct Options {
     /// `v2` set read as they did before the option, and absent (`v2`) in those sets.
     #[serde(default, skip_serializing_if = "is_v2", with = "families_text")]
     pub families: Families,
+    /// Which scenes to render, not which the set has: only this split's (`--split`), or
+    /// all. Not recorded, like `start`.
+    #[serde(skip)]
+    pub only_split: Option<String>,
 }
 
 /// Whether `f` is `v2` (for serde: not written).
@@ -397,6 +408,7 @@ pub fn run(
     let jobs: Vec<Job> = jobs(opts)
         .into_iter()
         .filter(|j| part.is_none_or(|p| p.contains(j.index)))
+        .filter(|j| opts.only_split.as_ref().is_none_or(|s| s == j.split))
         .collect();
     // Every finished scene is in the manifest before the first new one renders: training
     // reads the manifest while the set grows, and a resumed set must not look empty.
@@ -465,6 +477,7 @@ fn check_settings(opts: &Options, out: &Path, part: Option<Part>) -> Result<(), 
             count: old.count,
             holdout: old.holdout,
             start: old.start,
+            only_split: old.only_split.clone(),
             ..opts.clone()
         } == old;
         if !same {
@@ -683,6 +696,7 @@ mod tests {
             start,
             weak_share: 0.0,
             families: Families::V2,
+            only_split: None,
         }
     }
 
@@ -778,6 +792,34 @@ mod tests {
             .map(|r| r["name"].as_str().unwrap().to_string())
             .collect();
         assert_eq!(names, ["scene-00000", "scene-00001"]);
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    #[test]
+    fn a_split_alone_renders_its_scenes_and_a_whole_run_adds_the_rest() {
+        let out = std::env::temp_dir().join(format!("temc-dataset-split-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let whole = tiny(20, 1, 0);
+        let test_only = Options {
+            only_split: Some("test".into()),
+            ..whole.clone()
+        };
+        let (quiet, none, go) = (|_: &str| {}, |_: usize| {}, AtomicBool::new(false));
+        let m = run(&test_only, &out, None, &quiet, &none, &go).unwrap();
+        let want: Vec<_> = jobs(&whole)
+            .into_iter()
+            .filter(|j| j.split == "test")
+            .map(|j| j.name)
+            .collect();
+        assert!(want.iter().any(|n| n.starts_with("scene-")), "{want:?}");
+        let names = |m: &Manifest| m.scenes.iter().map(|r| r.name.clone()).collect::<Vec<_>>();
+        assert_eq!(names(&m), want);
+        // The whole set in the same folder: the test scenes are kept, not rendered again.
+        let kept = std::fs::read(out.join("test").join(&want[0]).join("done.json")).unwrap();
+        let m = run(&whole, &out, None, &quiet, &none, &go).unwrap();
+        assert_eq!(m.scenes.len(), jobs(&whole).len());
+        let again = std::fs::read(out.join("test").join(&want[0]).join("done.json")).unwrap();
+        assert_eq!(kept, again);
         std::fs::remove_dir_all(&out).unwrap();
     }
 
