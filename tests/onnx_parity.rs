@@ -98,7 +98,8 @@ fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
 
 #[test]
 fn shipped_temc2_models_match_onnxruntime() {
-    for q in ["fast", "balanced", "high"] {
+    // No temc2-high file while high runs the balanced model (src/filter/builtin.rs).
+    for q in ["fast", "balanced"] {
         check_shipped(&format!("temc2-{q}"), "temc2");
     }
 }

@@ -52,7 +52,8 @@ pub enum Quality {
     Fast = 4,
     /// The default trade-off.
     Balanced = 5,
-    /// Best quality: 3 pyramid levels (src/filter/builtin.rs).
+    /// Best quality. For now the balanced network, until a high model beats it
+    /// (src/filter/builtin.rs).
     High = 6,
 }
 

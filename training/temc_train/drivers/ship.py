@@ -33,12 +33,11 @@ SHIPPED = {
     # the block-mean energy term (--mean-weight 0.2), which measured better on 167 val+test
     # images at 19,200 s; the 3-level runs (temc2-w0.125, and one grown to 3 levels) worse.
     "temc2-balanced": ("temc2-w0.125-energy", "TEMC_QUALITY_BALANCED (the default)"),
-    # High: balanced's run grown to 3 levels at its 8-hour checkpoint (train.add_levels),
-    # the finest blends opened (--blend-logit -2) and trained on at lr 3e-4: on the Cycles
-    # family 0.71x / 0.90x / 0.93x balanced's RelMSE at 4 / 16 / 64 spp and 0.56x-0.83x its
-    # Delta E ITP (docs/reconstruction.md, "Multi-level, measured again"). It replaced the
-    # 3-level w0.25 run (temc2-w0.25), which trailed balanced and was retired.
-    "temc2-high": ("temc2-w0.125-l3", "TEMC_QUALITY_HIGH"),
+    # No high file: the 3-level w0.25 run (temc2-w0.25) trailed balanced and was retired
+    # (runs/RETIRED.md), and the 3-level w0.125 candidate (temc2-w0.125-l3), better on the
+    # Cycles family, squares small lamps and is worse on the held-out families
+    # (docs/reconstruction.md, "Multi-level as high, measured on every family"), so
+    # TEMC_QUALITY_HIGH runs balanced (src/filter/builtin.rs) until a high model beats it.
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
 }
@@ -52,21 +51,11 @@ MIN_OVERLAP = {
     # 2026-12-03, 22,632 steps: reach 30 px -> 64 px overlap, but tiled and untiled differed by
     # 2.3e-3 in PQ at 64 (tests/filter_api.rs, bound 1e-3) and by 3.7e-4 at 96.
     "temc2-balanced": 96,
-    # 2026-12-05, 55,790 steps: reach -> 64 px overlap, but the seam test differed by 1.7e-3
-    # at 64.
-    "temc2-high": 96,
 }
 # What a card must say beyond its numbers.
-NOTES = {
-    "temc2-high": "Grown from balanced: its first 8 CPU-hours (28,800 s, 39,512 steps) are the "
-                  "balanced run's, on spectral-v2; the hours as 3 levels trained on 36 scenes of "
-                  "every scene family (`temc-render dataset --families all`, rendered on that "
-                  "session's machine: the `scenes` of the data row), 2.35 h at lr 1e-4 and then "
-                  "0.6 h at 3e-4 with the finest blends opened. The Cycles family, never trained "
-                  "on, is its verdict (docs/cycles-report.md).",
-}
+NOTES = {}
 # The cumulative training budgets of scripts/train-all (issue 15).
-BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8, "temc2-high": 14}
+BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
