@@ -83,9 +83,17 @@ def test_command_line_exports_a_checkpoint(tmp_path, monkeypatch):
     assert (meta["temc.dataset"], meta["temc.train_steps"], meta["temc.test_relmse"]) == \
         ("toy", "12", "0.5")
     assert (meta["temc.demodulate"], meta["temc.demod_eps"]) == ("1", "0.02")
+    assert meta["temc.upsample"] == "nearest"  # what the model trained with
     xs = export.example_inputs(32, 32, seed=9)
     with torch.no_grad():
         want = [f.numpy() for f in m.eval()(*xs)]
+    assert export.max_diff(export.run_ort(str(out), xs), want) <= export.PARITY_TOL
+    # --upsample exports the other composition, the network unchanged.
+    monkeypatch.setattr("sys.argv", ["export", "--checkpoint", str(ckpt), "--out", str(out),
+                                     "--upsample", "bilinear"])
+    export.main()
+    meta = {p.key: p.value for p in onnx.load(out).metadata_props}
+    assert meta["temc.upsample"] == "bilinear" and meta["temc.levels"] == "3"
     assert export.max_diff(export.run_ort(str(out), xs), want) <= export.PARITY_TOL
     # A bare state_dict needs the architecture and width on the command line.
     torch.save(m.state_dict(), ckpt)

@@ -22,6 +22,7 @@ import torch
 from .. import receptive
 from ..checkpoint import load_checkpoint  # noqa: F401  (re-exported)
 from ..models import ARCHS, build
+from ..reconstruct import UPSAMPLES
 from ..onnx_export import (CHANNELS, GOLDEN_SIZE, GOLDEN_WIDTH, INPUTS, OPSET, PARITY_TOL,  # noqa: F401
                            example_inputs, export, max_diff, metadata, ort_session, output_names,
                            randomize_untrained, recon_of, run_ort)
@@ -64,6 +65,9 @@ def main() -> None:
     ap.add_argument("--test-relmse", type=float, help="temc.test_relmse")
     ap.add_argument("--description", help="temc.description")
     ap.add_argument("--golden", metavar="DIR", help="write test models and goldens under DIR")
+    ap.add_argument("--upsample", choices=UPSAMPLES,
+                    help="temc.upsample: the level composition the core runs (default: the one "
+                    "the model trained with); to measure the other without retraining")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
@@ -82,7 +86,7 @@ def main() -> None:
         what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
-    recon = recon_of(model)
+    recon = dict(recon_of(model), **({"upsample": a.upsample} if a.upsample else {}))
     # Trained weights carry their measured reach; random ones the theoretical bound.
     overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None
     meta = metadata(arch, width, recon, dataset=info.get("dataset", "none"),
