@@ -240,6 +240,16 @@ impl Inputs {
     }
 }
 
+/// This process's resident memory in bytes (Linux: /proc/self/statm), or None where the
+/// system does not say.
+fn resident_bytes() -> Option<usize> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: usize = statm.split_whitespace().nth(1)?.parse().ok()?;
+    // SAFETY: sysconf only reads a system constant.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    usize::try_from(page).ok().map(|p| pages * p)
+}
+
 /// The aux buffers a separate file can supply.
 #[derive(Clone, Copy)]
 enum AuxKind {
@@ -385,13 +395,11 @@ fn run_filter(
     if let Some(s) = args.input_scale {
         f.set_input_scale(s)?;
     }
-    // --max-memory-mb bounds the whole run: the filter gets what the buffers held here
-    // leave of it.
-    f.set_max_memory_mb(
-        args.max_memory_mb
-            .saturating_sub(inputs.bytes() >> 20)
-            .max(64),
-    );
+    // --max-memory-mb bounds the whole run: the filter gets what this process already
+    // holds (the input buffers, and the program, its libraries and heap: 7-25 MB more,
+    // which the buffers alone left 4K runs under 512 MB peaking up to 0.6 MB over) leaves.
+    let held = resident_bytes().unwrap_or(0).max(inputs.bytes());
+    f.set_max_memory_mb(args.max_memory_mb.saturating_sub(held >> 20).max(64));
     f.set_tile_size(args.tile_size);
     let bar = progress_bar(args.json);
     if let Some(bar) = bar.clone() {
@@ -633,4 +641,20 @@ fn bench(
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn resident_bytes_counts_touched_memory() {
+        // 16 MB of slack for what the block cache's tests, in other threads, free meanwhile.
+        let before = resident_bytes().unwrap();
+        let block = vec![1u8; 128 << 20];
+        let after = resident_bytes().unwrap();
+        assert!(after >= before + (112 << 20), "{before} -> {after}");
+        drop(block);
+    }
 }
