@@ -349,8 +349,8 @@ def checkpoint_recon(ckpt: dict) -> dict:
 
 def label(arch: str, width, levels: int = 1) -> str:
     """A model's name in the accuracy report and its model card, e.g. "TEMC-2 w0.125", with
-    its pyramid levels where there are several ("TEMC-2 w0.125, 3 levels"): the high model
-    has balanced's width, and the report keys its rows by this name."""
+    its pyramid levels where there are several ("TEMC-2 w0.125, 3 levels"): a 3-level
+    candidate has balanced's width, and the report keys its rows by this name."""
     name = f"{ARCH_NAMES[arch]} w{float(width):g}"
     return name if int(levels) == 1 else f"{name}, {int(levels)} levels"
 

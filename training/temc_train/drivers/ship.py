@@ -35,9 +35,9 @@ SHIPPED = {
     "temc2-balanced": ("temc2-w0.125-energy", "TEMC_QUALITY_BALANCED (the default)"),
     # No high file: the 3-level w0.25 run (temc2-w0.25) trailed balanced and was retired
     # (runs/RETIRED.md), and the 3-level w0.125 candidate (temc2-w0.125-l3), better on the
-    # Cycles family, draws blocks at fireflies and small lamps and is worse on the held-out families
-    # (docs/reconstruction.md, "Multi-level as high, measured on every family"), so
-    # TEMC_QUALITY_HIGH runs balanced (src/filter/builtin.rs) until a high model beats it.
+    # Cycles family, draws blocks at fireflies and small lamps and is worse on the held-out
+    # families (docs/reconstruction.md, "Multi-level as high, measured on every family"),
+    # so TEMC_QUALITY_HIGH runs balanced (src/filter/builtin.rs) until a high model beats it.
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
 }
