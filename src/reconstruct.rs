@@ -45,6 +45,49 @@ pub const RANGE_TAU: f32 = 3.0;
 /// before the log2: noise in the dark never reads as an edge.
 pub const RANGE_FLOOR: f32 = 0.02;
 
+/// The aux-guided opening (docs/reconstruction.md, "Aux-guided opening"): two pixels lie on
+/// one surface when the L1 distance of their aux planes is at most this.
+pub const AUX_SAME: f64 = 0.3;
+
+/// A pixel with no 3x3 neighbour on its own surface stays a feature of its own only with
+/// an emitter's albedo, every channel at least this (temc-render writes 1 for emitters,
+/// Blender's Cycles their emission, which the aux encoding clamps to 1).
+pub const EMITTER_ALBEDO: f32 = 0.95;
+
+/// What the fixed range term opens (`temc.range_opening`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RangeOpening {
+    /// Each level's own luminance, 3x3 grey opening (`plain` or absent).
+    #[default]
+    Plain,
+    /// The full-resolution luminance, opened over each pixel's neighbours on its own
+    /// surface as the aux planes tell it, and its 2x2 means at coarser levels (`aux`).
+    Aux,
+}
+
+impl RangeOpening {
+    /// The opening a `temc.range_opening` value names: `plain` or `aux`.
+    pub fn from_name(name: &str) -> Option<RangeOpening> {
+        match name {
+            "plain" => Some(RangeOpening::Plain),
+            "aux" => Some(RangeOpening::Aux),
+            _ => None,
+        }
+    }
+}
+
+/// The aux planes the aux-guided opening reads: the network's, `count` planes of the
+/// window's H x W, the albedo's three from plane `albedo` where the layout has one.
+#[derive(Clone, Copy, Debug)]
+pub struct RangeAux<'a> {
+    /// [`count`, H, W] planar.
+    pub planes: &'a [f32],
+    /// How many planes.
+    pub count: usize,
+    /// The first of the albedo's three planes, if any.
+    pub albedo: Option<usize>,
+}
+
 /// The model metadata the reconstruction needs (docs/contracts.md §2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {
@@ -66,6 +109,8 @@ pub struct Params {
     pub fixed_range: bool,
     /// The input scale (exposure) of the image, read only by the fixed range term.
     pub exposure: f32,
+    /// What the fixed range term opens (`temc.range_opening`); `Aux` needs the aux planes.
+    pub range_opening: RangeOpening,
     /// How the composition brings a coarse level's correction to the finer one
     /// (`temc.upsample`).
     pub upsample: Upsample,
@@ -117,7 +162,8 @@ pub fn channels(kernel: usize, guide: bool) -> usize {
 
 /// Applies the predicted filters to one H x W window; returns the [3, H, W] planar result.
 ///
-/// `rgb` and `albedo` are [3, H, W] planar (albedo is read only when demodulating);
+/// `rgb` and `albedo` are [3, H, W] planar (albedo is read only when demodulating); `aux`
+/// is read only by the fixed range term's aux-guided opening (and required by it);
 /// `filters[l]` is [`channels`(k, guide), H / 2^l, W / 2^l] planar. Every output value is finite and in
 /// [0, `LINEAR_MAX`] (LDR: [0, 1]), whatever the logits hold.
 ///
@@ -128,11 +174,13 @@ pub fn reconstruct(
     p: &Params,
     rgb: &[f32],
     albedo: Option<&[f32]>,
+    aux: Option<RangeAux<'_>>,
     filters: &[&[f32]],
     h: usize,
     w: usize,
 ) -> Result<Vec<f32>, Error> {
     validate(p, rgb, albedo, filters, h, w)?;
+    let aux = validate_aux(p, aux, h * w)?;
     let hw = h * w;
     // d = albedo + eps is recomputed in `recombine` rather than kept: 3 planes less.
     let d = albedo.filter(|_| p.demodulate).map(|a| (a, p.eps));
@@ -141,14 +189,24 @@ pub fn reconstruct(
         x.iter_mut().zip(a).for_each(|(v, a)| *v /= a + eps);
     }
     let mut scratch = Scratch::new(p.kernel, w);
+    let mut opened = aux.map(|a| aux_opened(&luminance(&x, hw), a, h, w));
     let (mut hl, mut wl) = (h, w);
     let mut outs = Vec::with_capacity(p.levels);
     for (l, f) in filters.iter().enumerate() {
         if l > 0 {
             x = downsample(&x, 3, hl, wl);
+            opened = opened.map(|o| downsample(&o, 1, hl, wl));
             (hl, wl) = (hl / 2, wl / 2);
         }
-        outs.push(filter_level(&x, f, p, hl, wl, &mut scratch));
+        outs.push(filter_level(
+            &x,
+            f,
+            p,
+            opened.as_deref(),
+            hl,
+            wl,
+            &mut scratch,
+        ));
     }
     let (mut cy, mut cc) = outs.pop().expect("levels >= 1");
     let k2 = p.kernel * p.kernel;
@@ -234,6 +292,125 @@ fn validate(
     Ok(())
 }
 
+/// The aux planes the reconstruction reads: Some only where the fixed range term opens
+/// with them; an error where it would but they are missing or short.
+fn validate_aux<'a>(
+    p: &Params,
+    aux: Option<RangeAux<'a>>,
+    hw: usize,
+) -> Result<Option<RangeAux<'a>>, Error> {
+    if !(p.fixed_range && p.range_opening == RangeOpening::Aux) {
+        return Ok(None);
+    }
+    let bad = |m: String| Err(Error::InvalidArgument(format!("reconstruct: {m}")));
+    let Some(a) = aux else {
+        return bad("the aux-guided opening needs the aux planes".into());
+    };
+    if a.planes.len() != a.count * hw || a.albedo.is_some_and(|i| i + 3 > a.count) {
+        return bad(format!(
+            "aux has {} values in {} planes (albedo at {:?}), expected {} a plane",
+            a.planes.len(),
+            a.count,
+            a.albedo,
+            hw
+        ));
+    }
+    Ok(Some(a))
+}
+
+/// The luminance plane of `n` planar RGB pixels.
+fn luminance(x: &[f32], n: usize) -> Vec<f32> {
+    let (r, gb) = x.split_at(n);
+    let (g, b) = gb.split_at(n);
+    r.iter()
+        .zip(g)
+        .zip(&b[..n])
+        .map(|((r, g), b)| LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b)
+        .collect()
+}
+
+/// The 3x3 grey opening of `luma` over each pixel's neighbours on its own surface: aux
+/// planes within [`AUX_SAME`] (L1). A small lamp the aux buffers outline keeps its value,
+/// a firefly on a surface drops to that surface's. A pixel with no neighbour on its surface
+/// (a texel, a silhouette's tip) is linked to all its neighbours, and they to it, unless
+/// its albedo is an emitter's ([`EMITTER_ALBEDO`]). Erosion and dilation over one symmetric
+/// relation: an opening (idempotent, never above `luma`).
+fn aux_opened(luma: &[f32], aux: RangeAux<'_>, h: usize, w: usize) -> Vec<f32> {
+    let n = h * w;
+    let same: Vec<u16> = (0..n).map(|i| surface_taps(aux, i, h, w)).collect();
+    let loose: Vec<bool> = (0..n)
+        .map(|i| same[i].count_ones() <= 1 && !is_emitter(aux, i, n))
+        .collect();
+    let masks: Vec<u16> = (0..n)
+        .map(|i| {
+            let (y, x) = (i / w, i % w);
+            (0..9u16).fold(same[i], |m, t| {
+                let (yy, xx) = (
+                    (y + t as usize / 3).wrapping_sub(1),
+                    (x + t as usize % 3).wrapping_sub(1),
+                );
+                let linked = yy < h && xx < w && (loose[i] || loose[yy * w + xx]);
+                if linked {
+                    m | 1 << t
+                } else {
+                    m
+                }
+            })
+        })
+        .collect();
+    let eroded = masked_window3(luma, &masks, h, w, f32::min, f32::INFINITY);
+    masked_window3(&eroded, &masks, h, w, f32::max, f32::NEG_INFINITY)
+}
+
+/// Bit 3 (dy + 1) + (dx + 1) set for each tap of pixel `i`'s 3x3 window inside the image
+/// on its surface (the centre always).
+fn surface_taps(aux: RangeAux<'_>, i: usize, h: usize, w: usize) -> u16 {
+    let n = h * w;
+    let (y, x) = (i / w, i % w);
+    let mut same = 0u16;
+    for t in 0..9 {
+        let (yy, xx) = ((y + t / 3).wrapping_sub(1), (x + t % 3).wrapping_sub(1));
+        if yy >= h || xx >= w {
+            continue;
+        }
+        let q = yy * w + xx;
+        let d: f64 = (0..aux.count)
+            .map(|c| (aux.planes[c * n + q] as f64 - aux.planes[c * n + i] as f64).abs())
+            .sum();
+        if d <= AUX_SAME {
+            same |= 1 << t;
+        }
+    }
+    same
+}
+
+/// Whether pixel `i` (of `n`) has an emitter's albedo: every albedo channel at least
+/// [`EMITTER_ALBEDO`]; never without albedo planes.
+fn is_emitter(aux: RangeAux<'_>, i: usize, n: usize) -> bool {
+    aux.albedo
+        .is_some_and(|a| (a..a + 3).all(|c| aux.planes[c * n + i] >= EMITTER_ALBEDO))
+}
+
+/// `op` over the taps of each pixel's 3x3 window that its mask (of [`surface_taps`]) holds.
+fn masked_window3(
+    x: &[f32],
+    masks: &[u16],
+    h: usize,
+    w: usize,
+    op: impl Fn(f32, f32) -> f32,
+    identity: f32,
+) -> Vec<f32> {
+    (0..h * w)
+        .map(|i| {
+            let (y, xx) = (i / w, i % w);
+            (0..9)
+                .filter(|t| masks[i] & (1 << t) != 0)
+                .map(|t| x[(y + t / 3 - 1) * w + xx + t % 3 - 1])
+                .fold(identity, &op)
+        })
+        .collect()
+}
+
 /// The 2x2 mean of each of `planes` planes of `h` x `w` (D of the spec; keeps the mean).
 fn downsample(x: &[f32], planes: usize, h: usize, w: usize) -> Vec<f32> {
     let x = ArrayView3::from_shape((planes, h, w), x).expect("planes of h x w");
@@ -249,11 +426,19 @@ fn downsample(x: &[f32], planes: usize, h: usize, w: usize) -> Vec<f32> {
 /// The fixed range term's guide of one level: log2(opened luminance x `exposure` +
 /// RANGE_FLOOR), where the 3x3 grey opening (min, then max, over the pixels inside) drops
 /// bright features smaller than 3x3 (fireflies, which must still spread) to their
-/// surroundings and keeps larger ones (lamps) with exact edges. Non-finite values cannot
-/// occur: the luminance is finite and non-negative (sanitised radiance).
-fn range_guide(luma: &[f32], h: usize, w: usize, exposure: f32) -> Vec<f32> {
-    let eroded = window3(luma, h, w, f32::min);
-    window3(&eroded, h, w, f32::max)
+/// surroundings and keeps larger ones (lamps) with exact edges; `opened`, where given, is
+/// the aux-guided opening's plane for this level instead. Non-finite values cannot occur:
+/// the luminance is finite and non-negative (sanitised radiance).
+fn range_guide(
+    luma: &[f32],
+    opened: Option<&[f32]>,
+    h: usize,
+    w: usize,
+    exposure: f32,
+) -> Vec<f32> {
+    let plain = || window3(&window3(luma, h, w, f32::min), h, w, f32::max);
+    opened
+        .map_or_else(plain, <[f32]>::to_vec)
         .into_iter()
         .map(|v| (v.max(0.0) * exposure + RANGE_FLOOR).log2())
         .collect()
@@ -346,6 +531,7 @@ fn filter_level(
     x: &[f32],
     f: &[f32],
     p: &Params,
+    opened: Option<&[f32]>,
     h: usize,
     w: usize,
     s: &mut Scratch,
@@ -353,9 +539,9 @@ fn filter_level(
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2. No FMA: the results are bit-identical to the baseline's.
-        return unsafe { filter_level_avx2(x, f, p, h, w, s) };
+        return unsafe { filter_level_avx2(x, f, p, opened, h, w, s) };
     }
-    filter_level_any(x, f, p, h, w, s)
+    filter_level_any(x, f, p, opened, h, w, s)
 }
 
 /// [`filter_level_any`] compiled for AVX2: 8 lanes instead of SSE2's 4 (about 2x faster).
@@ -365,11 +551,12 @@ fn filter_level_avx2(
     x: &[f32],
     f: &[f32],
     p: &Params,
+    opened: Option<&[f32]>,
     h: usize,
     w: usize,
     s: &mut Scratch,
 ) -> (Vec<f32>, Vec<f32>) {
-    filter_level_any(x, f, p, h, w, s)
+    filter_level_any(x, f, p, opened, h, w, s)
 }
 
 /// The body of [`filter_level`], inlined into each instruction-set version.
@@ -378,6 +565,7 @@ fn filter_level_any(
     x: &[f32],
     f: &[f32],
     p: &Params,
+    opened: Option<&[f32]>,
     h: usize,
     w: usize,
     s: &mut Scratch,
@@ -385,15 +573,10 @@ fn filter_level_any(
     let n = h * w;
     let k2 = p.kernel * p.kernel;
     let guide = |c: usize| p.guide.then(|| &f[(2 * k2 + 2 + c) * n..][..n]);
-    let (r, gb) = x.split_at(n);
-    let (g, b) = gb.split_at(n);
-    let luma: Vec<f32> = r
-        .iter()
-        .zip(g)
-        .zip(b)
-        .map(|((r, g), b)| LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b)
-        .collect();
-    let fixed = p.fixed_range.then(|| range_guide(&luma, h, w, p.exposure));
+    let luma = luminance(x, n);
+    let fixed = p
+        .fixed_range
+        .then(|| range_guide(&luma, opened, h, w, p.exposure));
     let mut fy = vec![0.0; n];
     let mut fc = vec![0.0; 3 * n];
     for y in 0..h {
@@ -692,6 +875,7 @@ mod tests {
             fixed_range: false,
             exposure: 1.0,
             upsample: Upsample::Nearest,
+            range_opening: RangeOpening::Plain,
         }
     }
 
@@ -712,7 +896,7 @@ mod tests {
         w: usize,
     ) -> Vec<f32> {
         let f: Vec<&[f32]> = f.iter().map(|v| v.as_slice()).collect();
-        reconstruct(p, rgb, albedo, &f, h, w).unwrap()
+        reconstruct(p, rgb, albedo, None, &f, h, w).unwrap()
     }
 
     fn lum(v: &[f32], n: usize, i: usize) -> f32 {
@@ -973,10 +1157,10 @@ mod tests {
         let f1 = vec![0.0; channels(3, false) * n / 4];
         let ok: [&[f32]; 2] = [&f0, &f1];
         let p = params(2, 3);
-        assert!(reconstruct(&p, &rgb, None, &ok, h, w).is_ok());
+        assert!(reconstruct(&p, &rgb, None, None, &ok, h, w).is_ok());
         let err = |p: &Params, rgb: &[f32], a: Option<&[f32]>, f: &[&[f32]], h, w| {
             matches!(
-                reconstruct(p, rgb, a, f, h, w),
+                reconstruct(p, rgb, a, None, f, h, w),
                 Err(Error::InvalidArgument(_))
             )
         };
@@ -1004,7 +1188,7 @@ mod tests {
             h,
             w
         ));
-        assert!(reconstruct(&demod, &rgb, Some(&rgb), &ok, h, w).is_ok());
+        assert!(reconstruct(&demod, &rgb, Some(&rgb), None, &ok, h, w).is_ok());
     }
 
     #[test]
@@ -1019,8 +1203,8 @@ mod tests {
             };
             let f = rng.vec(channels(k, guide) * h * w, |r| r.normal(3.0));
             let mut s = Scratch::new(k, w);
-            let any = filter_level_any(&x, &f, &p, h, w, &mut s);
-            assert_eq!(filter_level(&x, &f, &p, h, w, &mut s), any);
+            let any = filter_level_any(&x, &f, &p, None, h, w, &mut s);
+            assert_eq!(filter_level(&x, &f, &p, None, h, w, &mut s), any);
         }
     }
 
@@ -1130,6 +1314,61 @@ mod tests {
         assert!(lum(&out, n, fly) < 41.0);
     }
 
+    /// Under the aux-guided opening, a 1 px lamp with an emitter's albedo keeps its light
+    /// and none reaches its neighbours, while a firefly on the surface and one on a lone
+    /// texel (no neighbour on its surface, not an emitter) still spread as they would under
+    /// the plain opening; without the aux planes the reconstruction refuses.
+    #[test]
+    fn the_aux_guided_opening_keeps_a_small_lamp_and_spreads_fireflies() {
+        let (h, w, k) = (16, 16, 5);
+        let n = h * w;
+        let (lamp, fly, texel) = (5 * w + 5, 11 * w + 10, 3 * w + 12);
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| match i % n {
+                j if j == lamp => 800.0,
+                j if j == fly || j == texel => 900.0,
+                _ => 0.1,
+            })
+            .collect();
+        let mut aux = vec![0.5f32; 7 * n];
+        for c in 0..3 {
+            aux[c * n + lamp] = 1.0;
+            aux[c * n + texel] = 0.2;
+        }
+        let f = vec![vec![0.0; channels(k, false) * n]];
+        let plain = Params {
+            fixed_range: true,
+            ..params(1, k)
+        };
+        let p = Params {
+            range_opening: RangeOpening::Aux,
+            ..plain
+        };
+        let a = RangeAux {
+            planes: &aux,
+            count: 7,
+            albedo: Some(0),
+        };
+        let fr: Vec<&[f32]> = f.iter().map(Vec::as_slice).collect();
+        let out = reconstruct(&p, &rgb, None, Some(a), &fr, h, w).unwrap();
+        let spread = run(&plain, &rgb, None, &f, h, w);
+        assert!(close(lum(&out, n, lamp), 800.0, 1e-5));
+        assert!(lum(&out, n, lamp + 1) < 0.2 && lum(&out, n, lamp + w) < 0.2);
+        assert!(
+            lum(&spread, n, lamp + 1) > 20.0,
+            "the plain opening spreads the lamp"
+        );
+        for i in [fly, fly + 1, texel, texel - w] {
+            assert!(
+                close(lum(&out, n, i), lum(&spread, n, i), 1e-5),
+                "pixel {i}"
+            );
+        }
+        assert!(reconstruct(&p, &rgb, None, None, &fr, h, w).is_err());
+        let short = RangeAux { count: 8, ..a };
+        assert!(reconstruct(&p, &rgb, None, Some(short), &fr, h, w).is_err());
+    }
+
     fn json_f32(v: &serde_json::Value) -> f32 {
         match v {
             serde_json::Value::String(s) => match s.as_str() {
@@ -1177,9 +1416,15 @@ mod tests {
                     let u = case["upsample"].as_str().unwrap_or("nearest");
                     Upsample::from_name(u).unwrap_or_else(|| panic!("{name}: bad upsample {u}"))
                 },
+                range_opening: {
+                    let o = case["range_opening"].as_str().unwrap_or("plain");
+                    RangeOpening::from_name(o)
+                        .unwrap_or_else(|| panic!("{name}: bad range_opening {o}"))
+                },
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));
+            let aux = (!case["aux"].is_null()).then(|| json_vec(&case["aux"]));
             let f: Vec<Vec<f32>> = case["filters"]
                 .as_array()
                 .unwrap()
@@ -1187,7 +1432,13 @@ mod tests {
                 .map(json_vec)
                 .collect();
             let want = json_vec(&case["out"]);
-            let got = run(&p, &rgb, albedo.as_deref(), &f, h, w);
+            let fr: Vec<&[f32]> = f.iter().map(Vec::as_slice).collect();
+            let a = aux.as_deref().map(|planes| RangeAux {
+                planes,
+                count: planes.len() / (h * w),
+                albedo: Some(0),
+            });
+            let got = reconstruct(&p, &rgb, albedo.as_deref(), a, &fr, h, w).unwrap();
             assert_eq!(got.len(), want.len(), "{name}");
             for (i, (g, e)) in got.iter().zip(&want).enumerate() {
                 assert!(
@@ -1218,7 +1469,7 @@ mod tests {
                         ..params(3, 5)
                     };
                     let t = std::time::Instant::now();
-                    let out = reconstruct(&p, &rgb, None, &fr, h, w).unwrap();
+                    let out = reconstruct(&p, &rgb, None, None, &fr, h, w).unwrap();
                     *b = b.min(t.elapsed().as_secs_f64());
                     std::hint::black_box(out);
                 }

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::reconstruct::Upsample;
+use crate::reconstruct::{RangeOpening, Upsample};
 use crate::Error;
 
 /// The metadata format this build understands: 2 = the network predicts filters
@@ -58,6 +58,9 @@ pub struct ModelInfo {
     /// How the level composition upsamples (`temc.upsample`: `nearest`, the default when
     /// absent, or `bilinear`).
     pub upsample: Upsample,
+    /// What the fixed range term opens (`temc.range_opening`: `plain`, the default when
+    /// absent, or `aux`, the aux-guided opening).
+    pub range_opening: RangeOpening,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -143,6 +146,14 @@ impl ModelInfo {
                 ))
             })?,
         };
+        let range_opening = match raw.get("temc.range_opening") {
+            None => RangeOpening::Plain,
+            Some(v) => RangeOpening::from_name(v).ok_or_else(|| {
+                Error::Model(format!(
+                    "metadata `temc.range_opening` = {v:?} must be \"plain\" or \"aux\""
+                ))
+            })?,
+        };
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -198,6 +209,7 @@ impl ModelInfo {
             guide,
             fixed_range,
             upsample,
+            range_opening,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
@@ -272,6 +284,7 @@ mod tests {
             ("temc.train_steps", "0"),
             ("temc.test_relmse", "none"),
             ("temc.upsample", "nearest"),
+            ("temc.range_opening", "aux"),
             ("other.key", "ignored"),
         ]
     }
@@ -287,6 +300,12 @@ mod tests {
         assert!(m.is_untrained());
         assert!(!m.raw.contains_key("other.key"));
         assert_eq!(m.upsample, Upsample::Nearest);
+        assert_eq!(m.range_opening, RangeOpening::Aux);
+        let without = card()
+            .into_iter()
+            .filter(|(k, _)| *k != "temc.range_opening");
+        let m = ModelInfo::from_props(without).unwrap();
+        assert_eq!(m.range_opening, RangeOpening::Plain);
     }
 
     #[test]
@@ -319,6 +338,7 @@ mod tests {
             ("temc.aux_layout", Some("albedo3")),
             ("temc.width", Some("-1")),
             ("temc.upsample", Some("cubic")),
+            ("temc.range_opening", Some("closed")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

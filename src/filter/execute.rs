@@ -385,10 +385,29 @@ fn denoise_tile(
         fixed_range: info.fixed_range,
         exposure,
         upsample: info.upsample,
+        range_opening: info.range_opening,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
     let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));
-    reconstruct::reconstruct(&params, Packed::plane(&p.rgb), albedo, &refs, win.h, win.w)
+    let aux = reconstruct::RangeAux {
+        planes: Packed::plane(&p.aux),
+        count: info.aux_channels,
+        albedo: albedo_plane(info),
+    };
+    let rgb = Packed::plane(&p.rgb);
+    reconstruct::reconstruct(&params, rgb, albedo, Some(aux), &refs, win.h, win.w)
+}
+
+/// The first of the albedo's planes among the network's aux planes, if its layout has one.
+fn albedo_plane(info: &crate::engine::ModelInfo) -> Option<usize> {
+    let mut first = 0;
+    for (name, channels) in &info.aux_planes {
+        if name == "albedo" {
+            return Some(first);
+        }
+        first += channels;
+    }
+    None
 }
 
 /// Runs the job. With an "output" image the result is written there and `None` returned;

@@ -127,6 +127,7 @@ class Checkpoint:
         model.demodulate, model.eps = r["demodulate"], r["eps"]
         model.fixed_range = r["fixed_range"]
         model.upsample = r["upsample"]
+        model.range_opening = r["range_opening"]
         return model, arch, float(width)
 
     # -- writing -----------------------------------------------------------------------

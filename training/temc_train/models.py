@@ -31,7 +31,8 @@ SPLITS = ("both", "one")
 # runs from before guides (temc2-w0.125, temc2-w0.0625) hold no "guide" and have no guide
 # rows. train.py and export.py both fill the gaps from here, so a checkpoint loads alike.
 RECON_DEFAULTS = {"levels": LEVELS, "kernel": KERNEL, "split": "both", "demodulate": False,
-                  "eps": 0.01, "guide": False, "fixed_range": False, "upsample": "nearest"}
+                  "eps": 0.01, "guide": False, "fixed_range": False, "upsample": "nearest",
+                  "range_opening": "plain"}
 # The architectures' names in the paper, the accuracy report and the model cards.
 ARCH_NAMES = {"ae": "AE", "demc": "DEMC", "temc1": "TEMC-1", "temc2": "TEMC-2"}
 

@@ -40,7 +40,8 @@ def recon_of(model) -> dict:
             "demodulate": bool(getattr(model, "demodulate", d["demodulate"])),
             "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"])),
             "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"])),
-            "upsample": getattr(model, "upsample", d["upsample"])}
+            "upsample": getattr(model, "upsample", d["upsample"]),
+            "range_opening": getattr(model, "range_opening", d["range_opening"])}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -66,6 +67,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.guide": "1" if recon.get("guide") else "0",
         "temc.fixed_range": "1" if recon.get("fixed_range") else "0",
         "temc.upsample": recon.get("upsample", "nearest"),
+        "temc.range_opening": recon.get("range_opening", "plain"),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

@@ -23,6 +23,14 @@ GREY_PULL = 1e-6
 # log-mean at 0.18, keeps noise in the dark from reading as edges.
 RANGE_TAU = 3.0
 RANGE_FLOOR = 0.02
+# The aux-guided opening (docs/reconstruction.md, "Aux-guided opening"): two pixels lie on
+# one surface when the L1 distance of their aux planes is at most AUX_SAME; a pixel alone
+# on its surface among its 3x3 neighbours counts as a feature only with an emitter's albedo
+# (every albedo channel at least EMITTER_ALBEDO: temc-render writes 1 for emitters, Cycles
+# their emission, clamped to 1 by the aux encoding).
+AUX_SAME = 0.3
+EMITTER_ALBEDO = 0.95
+RANGE_OPENINGS = ("plain", "aux")
 
 
 def channels(kernel, guide=False):
@@ -82,22 +90,64 @@ def opened(y):
     return F.max_pool2d(pad(eroded), 3, stride=1)
 
 
-def fixed_range_term(y, kernel, scale=1.0):
+def _taps3(v):
+    """[N, C, 9, H, W]: each pixel's 3x3 window, edges replicated (= the taps inside, for
+    a min or a max)."""
+    n, c, h, w = v.shape
+    return F.unfold(F.pad(v, (1, 1, 1, 1), mode="replicate"), 3).view(n, c, 9, h, w)
+
+
+def aux_opened(y, aux):
+    """The 3x3 grey opening of luminance `y` [N, 1, H, W] over each pixel's neighbours on
+    its own surface (aux planes within AUX_SAME, L1; `aux` is the network's [N, 7, H, W],
+    albedo first): a small lamp the aux buffers outline keeps its value, a firefly on a
+    surface drops to that surface. A pixel with no neighbour on its surface (a texel, a
+    silhouette's tip) is linked to all its neighbours, and they to it, unless its albedo is
+    an emitter's. Erosion and dilation over one symmetric relation: an opening (idempotent,
+    never above `y`)."""
+    aux = aux.to(y.dtype)
+    same = (_taps3(aux) - aux[:, :, None]).abs().sum(1) <= AUX_SAME
+    inside = _inside(3, y.shape[2], y.shape[3], y)  # replicated taps repeat inside ones
+    alone = (same & inside).sum(1, keepdim=True) <= 1
+    loose = (alone & (aux[:, :3].amin(1, keepdim=True) < EMITTER_ALBEDO)).to(y.dtype)
+    same = same | (loose > 0) | (_taps3(loose)[:, 0] > 0)
+    big = torch.finfo(y.dtype).max
+    eroded = torch.where(same, _taps3(y)[:, 0], big).amin(1, keepdim=True)
+    return torch.where(same, _taps3(eroded)[:, 0], -big).amax(1, keepdim=True)
+
+
+def range_planes(y, levels, aux=None):
+    """The fixed range term's opened luminance per level: with `aux`, aux_opened at full
+    resolution and its 2x2 means below (a lamp the fine level keeps stays a feature at
+    every level); without, None (each level opens its own luminance)."""
+    if aux is None:
+        return [None] * levels
+    o = aux_opened(y.detach(), aux.detach())
+    out = [o]
+    for _ in range(levels - 1):
+        out.append(F.avg_pool2d(out[-1], 2))
+    return out
+
+
+def fixed_range_term(y, kernel, scale=1.0, opened_y=None):
     """-(max(0, |g(p + t) - g(p)| - RANGE_TAU))^2 / 2 per tap t, g = log2 of the opened
     luminance at the exposure `scale` plus RANGE_FLOOR: a tap more than 2^RANGE_TAU times
     brighter or darker than the centre, in a feature of 3x3 px or more, falls off whatever
     the learned logits say (a lamp 1000x its ceiling weighs e^-24.5 there); fireflies, gone
-    from the opening, still spread. Fixed, not learned: no gradient flows through g."""
+    from the opening, still spread. `opened_y`: the opening to use (range_planes), else
+    the plain opening of `y`. Fixed, not learned: no gradient flows through g."""
     n, _, h, w = y.shape
-    g = torch.log2(opened(y.detach()).clamp(min=0.0) * scale + RANGE_FLOOR)
+    o = opened(y.detach()) if opened_y is None else opened_y.detach()
+    g = torch.log2(o.clamp(min=0.0) * scale + RANGE_FLOOR)
     taps = F.unfold(g, kernel, padding=kernel // 2).view(n, kernel * kernel, h, w)
     excess = ((taps - g).abs() - RANGE_TAU).clamp(min=0.0)
     return -0.5 * excess * excess
 
 
-def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None):
     """(luma weights, chroma weights, luminance, cleaned logits) of one level: the softmax
-    over the taps inside, [N, k^2, H, W] each, and the luminance plane the luma weights filter."""
+    over the taps inside, [N, k^2, H, W] each, and the luminance plane the luma weights
+    filter. `opened_y`: the fixed range term's opening (fixed_range_term)."""
     kk = kernel * kernel
     logits = _clean(logits)
     outside = ~_inside(kernel, x.shape[2], x.shape[3], x)
@@ -107,17 +157,18 @@ def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
         chroma_l = chroma_l + _range_term(logits[:, 2 * kk + 3 : 2 * kk + 4], kernel)
     y = _lum(x)
     if fixed_range:
-        term = fixed_range_term(y, kernel, scale)
+        term = fixed_range_term(y, kernel, scale, opened_y)
         luma_l, chroma_l = luma_l + term, chroma_l + term
     luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
     chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
     return luma_w, chroma_w, y, logits
 
 
-def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None):
     """(fy, fc, luma blend logit, chroma blend logit) of one level."""
     kk = kernel * kernel
-    luma_w, chroma_w, y, logits = level_weights(x, logits, kernel, guide, fixed_range, scale)
+    luma_w, chroma_w, y, logits = level_weights(x, logits, kernel, guide, fixed_range, scale,
+                                                opened_y)
     fy = _apply(y, luma_w, kernel)
     fc = _apply(x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
@@ -157,24 +208,32 @@ def _recombine(cy, cc):
 
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
-                fixed_range=False, scale=1.0, upsample="nearest"):
+                fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
     the exposure that puts `rgb` at a log-mean near 0.18 (1 for training crops, which come
     scaled), read only by that term. `upsample`: how the composition brings a coarse
-    level's correction to the finer one (UPSAMPLES; `temc.upsample`)."""
+    level's correction to the finer one (UPSAMPLES; `temc.upsample`). `range_opening`
+    (RANGE_OPENINGS; `temc.range_opening`): `aux` opens the fixed range term's luminance
+    with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level."""
+    if range_opening not in RANGE_OPENINGS:
+        raise ValueError(f"range_opening must be one of {RANGE_OPENINGS}, got {range_opening!r}")
     for level, f in enumerate(filters):
         want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
             raise ValueError(f"filters[{level}] has shape {tuple(f.shape)}, expected {want}")
     d = albedo + eps if demodulate else None
     x = rgb / d if demodulate else rgb
+    guided = fixed_range and range_opening == "aux"
+    if guided and aux is None:
+        raise ValueError("range_opening 'aux' needs the aux planes")
+    opened_ys = range_planes(_lum(x), len(filters), aux if guided else None)
     levels = []
     for level, f in enumerate(filters):
         if level:
             x = F.avg_pool2d(x, 2)
-        levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale))
+        levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level]))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
         cy, cc = _compose(fy, cy, a, upsample), _compose(fc, cc, b, upsample)
@@ -205,6 +264,7 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"], recon["demodulate"],
                       recon["eps"], guide=recon.get("guide", False),
                       fixed_range=recon.get("fixed_range", False), scale=scale,
-                      upsample=recon.get("upsample", "nearest"))
+                      upsample=recon.get("upsample", "nearest"),
+                      range_opening=recon.get("range_opening", "plain"), aux=aux_t)
     out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
     return keep_mean_stage(out, radiance) if keep else out

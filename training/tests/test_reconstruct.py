@@ -12,7 +12,8 @@ import torch
 import torch.nn.functional as F
 
 from temc_train.vectors import recon_vectors
-from temc_train.reconstruct import LINEAR_MAX, LOGIT_MAX, LUMA, channels, reach, reconstruct
+from temc_train.reconstruct import (LINEAR_MAX, LOGIT_MAX, LUMA, aux_opened, channels, opened, reach,
+                                    reconstruct)
 
 VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
 DOC = json.loads(VECTORS.read_text())
@@ -29,6 +30,8 @@ def decode(case):
     c = dict(case, rgb=arr(case["rgb"], h, w), filters=[
         arr(f, h >> l, w >> l) for l, f in enumerate(case["filters"])])
     c["albedo"] = None if case["albedo"] is None else arr(case["albedo"], h, w)
+    c["aux"] = None if case.get("aux") is None else arr(case["aux"], h, w)
+    c.setdefault("range_opening", "plain")
     return c
 
 
@@ -255,3 +258,38 @@ def test_the_fixed_range_term_lets_a_firefly_spread_and_passes_no_gradient_to_it
     assert float(lum(out)[0, 8, 8]) < 41.0
     out.sum().backward()
     assert torch.isfinite(f.grad).all()
+
+
+def _surface_aux(h, w):
+    return torch.full((1, 7, h, w), 0.5)
+
+
+def test_the_aux_guided_opening_keeps_a_small_lamp_and_spreads_fireflies():
+    # The Rust test of the same name: a 1 px lamp with an emitter's albedo keeps its light
+    # and lends none; a firefly on the surface and one on a lone non-emitter texel spread
+    # exactly as under the plain opening; without aux planes the call is refused.
+    rgb = torch.full((1, 3, 16, 16), 0.1)
+    rgb[:, :, 5, 5], rgb[:, :, 11, 10], rgb[:, :, 3, 12] = 800.0, 900.0, 900.0
+    aux = _surface_aux(16, 16)
+    aux[:, :3, 5, 5], aux[:, :3, 3, 12] = 1.0, 0.2
+    f = torch.zeros(1, channels(5), 16, 16)
+    out = lum(reconstruct(rgb, None, [f], 5, fixed_range=True, range_opening="aux", aux=aux))[0]
+    spread = lum(reconstruct(rgb, None, [f], 5, fixed_range=True))[0]
+    assert abs(float(out[5, 5]) - 800.0) < 1e-3
+    assert float(out[5, 6]) < 0.2 and float(out[6, 5]) < 0.2 and float(spread[5, 6]) > 20.0
+    for y, x in ((11, 10), (11, 11), (3, 12), (2, 12)):
+        assert torch.allclose(out[y, x], spread[y, x], rtol=1e-5)
+    with pytest.raises(ValueError):
+        reconstruct(rgb, None, [f], 5, fixed_range=True, range_opening="aux")
+    with pytest.raises(ValueError):
+        reconstruct(rgb, None, [f], 5, fixed_range=True, range_opening="closed", aux=aux)
+
+
+def test_the_aux_guided_opening_is_the_plain_one_on_one_surface_and_never_above_the_input():
+    gen = torch.Generator().manual_seed(3)
+    y = torch.rand(1, 1, 12, 20, generator=gen) ** 4 * 50.0
+    flat = _surface_aux(12, 20)
+    assert torch.equal(aux_opened(y, flat), opened(y))
+    aux = (torch.rand(1, 7, 12, 20, generator=gen) > 0.5).float() * 0.4
+    o = aux_opened(y, aux)
+    assert (o <= y).all() and torch.equal(aux_opened(o, aux), o)

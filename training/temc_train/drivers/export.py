@@ -22,7 +22,7 @@ import torch
 from .. import receptive
 from ..checkpoint import load_checkpoint  # noqa: F401  (re-exported)
 from ..models import ARCHS, build
-from ..reconstruct import UPSAMPLES
+from ..reconstruct import RANGE_OPENINGS, UPSAMPLES
 from ..onnx_export import (CHANNELS, GOLDEN_SIZE, GOLDEN_WIDTH, INPUTS, OPSET, PARITY_TOL,  # noqa: F401
                            example_inputs, export, max_diff, metadata, ort_session, output_names,
                            randomize_untrained, recon_of, run_ort)
@@ -68,6 +68,9 @@ def main() -> None:
     ap.add_argument("--upsample", choices=UPSAMPLES,
                     help="temc.upsample: the level composition the core runs (default: the one "
                     "the model trained with); to measure the other without retraining")
+    ap.add_argument("--range-opening", choices=RANGE_OPENINGS,
+                    help="temc.range_opening: what the fixed range term opens (default: what "
+                    "the model trained with); to measure the other without retraining")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
@@ -86,7 +89,8 @@ def main() -> None:
         what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
-    recon = dict(recon_of(model), **({"upsample": a.upsample} if a.upsample else {}))
+    chosen = {"upsample": a.upsample, "range_opening": a.range_opening}
+    recon = dict(recon_of(model), **{k: v for k, v in chosen.items() if v})
     # Trained weights carry their measured reach; random ones the theoretical bound.
     overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None
     meta = metadata(arch, width, recon, dataset=info.get("dataset", "none"),

@@ -54,7 +54,7 @@ from .. import data
 from ..checkpoint import CHECKPOINT_LIMIT, Checkpoint  # noqa: F401  (CHECKPOINT_LIMIT: re-exported)
 from ..loss import ALPHA, noise2noise_loss, training_loss
 from ..models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params  # noqa: F401
-from ..reconstruct import UPSAMPLES, reconstruct
+from ..reconstruct import RANGE_OPENINGS, UPSAMPLES, reconstruct
 from . import shard
 from .distributed import Group
 
@@ -63,7 +63,8 @@ def recon_settings(a) -> dict:
     """The reconstruction a run trains for; stored in its checkpoints and exported."""
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
-            "fixed_range": bool(a.fixed_range), "upsample": a.upsample}
+            "fixed_range": bool(a.fixed_range), "upsample": a.upsample,
+            "range_opening": a.range_opening}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -75,7 +76,8 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
     return reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
                        rs["eps"], guide=rs.get("guide", False),
                        fixed_range=rs.get("fixed_range", False),
-                       upsample=rs.get("upsample", "nearest"))
+                       upsample=rs.get("upsample", "nearest"),
+                       range_opening=rs.get("range_opening", "plain"), aux=xs[2])
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -367,6 +369,11 @@ def resume_model(a, model, ckpt_path, rs):
         held_recon["upsample"] = rs["upsample"]
         ck.recon = dict(ck.recon, upsample=rs["upsample"])
         ck.state["upsample_from_step"] = ck.state["step"]
+    if held_recon["range_opening"] != rs["range_opening"]:
+        # Fixed as well (what the range term opens, no weights): switchable at any step.
+        held_recon["range_opening"] = rs["range_opening"]
+        ck.recon = dict(ck.recon, range_opening=rs["range_opening"])
+        ck.state["range_opening_from_step"] = ck.state["step"]
     held = (ck.arch, ck.width, held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
@@ -619,6 +626,11 @@ def main(argv=None):
     ap.add_argument("--fixed-range", type=int, choices=(0, 1), default=0,
                     help="add the fixed range term on opened log luminance, which keeps lamps' "
                          "energy out of their dark neighbours (docs/reconstruction.md); a run "
+                         "may switch it at any step")
+    ap.add_argument("--range-opening", choices=RANGE_OPENINGS, default="plain",
+                    help="what the fixed range term opens: each level's luminance (plain) or "
+                         "the full-resolution luminance over each pixel's neighbours on its own "
+                         "surface (aux; docs/reconstruction.md, \"Aux-guided opening\"); a run "
                          "may switch it at any step")
     ap.add_argument("--blend-logit", type=float, default=None,
                     help="on resume, set the finest level's blend biases to this once (a grown "

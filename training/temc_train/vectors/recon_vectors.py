@@ -32,8 +32,8 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
-                upsample=upsample, rgb=rgb, albedo=albedo if demodulate else None,
-                filters=filters)
+                upsample=upsample, range_opening="plain", rgb=rgb,
+                albedo=albedo if demodulate else None, aux=None, filters=filters)
 
 
 def cases():
@@ -102,6 +102,46 @@ def cases():
     c = _case("bilinear_lamp_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, upsample="bilinear")
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
+    return out + aux_opening_cases(rng)
+
+
+def _aux(rng, h, w, patches=6):
+    """[7, h, w] aux planes of a few flat surfaces (albedo, normal, depth in [0, 1]) with
+    their edges where the patches meet."""
+    aux = np.zeros((7, h, w))
+    aux[:] = np.round(rng.random((7, 1, 1)), 3)
+    for _ in range(patches):
+        y, x = rng.integers(0, h), rng.integers(0, w)
+        aux[:, y:y + rng.integers(2, 6), x:x + rng.integers(2, 6)] = np.round(rng.random((7, 1, 1)) * 0.9, 3)
+    return aux
+
+
+def aux_opening_cases(rng):
+    """The aux-guided opening (range_opening "aux"): a 1 px lamp with an emitter's albedo
+    on a surface (kept), a firefly on that surface and one on a lone non-emitter texel
+    (both opened away), a 2x2 lamp the aux outlines, and random multi-level cases."""
+    out = []
+    c = _case("aux_lamp_16x16_L1_k5", rng, 16, 16, 1, 5, sd=0.5, fixed_range=True, exposure=0.5)
+    c.update(range_opening="aux", aux=_aux(rng, 16, 16, 0))
+    c["rgb"][:, 5, 5] = 800.0  # the lamp: an emitter's albedo, its own normal
+    c["aux"][:3, 5, 5] = 1.0
+    c["aux"][3:6, 5, 5] = 0.1
+    c["rgb"][:, 11, 11] = 900.0  # a firefly on the surface
+    c["rgb"][:, 3, 12] = 700.0  # a firefly on a lone texel
+    c["aux"][:3, 3, 12] = 0.3
+    out.append(c)
+    c = _case("aux_lamp2_16x8_L2_k3", rng, 16, 8, 2, 3, sd=0.5, fixed_range=True, exposure=2.0)
+    c.update(range_opening="aux", aux=_aux(rng, 16, 8, 0))
+    c["rgb"][:, 6:8, 2:4] = 500.0
+    c["aux"][:3, 6:8, 2:4] = 0.8
+    out.append(c)
+    for name, h, w, levels, kernel, up in (("aux_random_16x16_L3_k5", 16, 16, 3, 5, "nearest"),
+                                          ("aux_random_24x8_L2_k3", 24, 8, 2, 3, "bilinear")):
+        c = _case(name, rng, h, w, levels, kernel, sd=1.0, guide=True, fixed_range=True,
+                  exposure=0.7, upsample=up)
+        c.update(range_opening="aux", aux=_aux(rng, h, w))
+        c["rgb"] *= np.where(rng.random((1, h, w)) < 0.1, 300.0, 1.0)
+        out.append(c)
     return out
 
 
@@ -109,9 +149,11 @@ def run(case, dtype):
     """The torch result for one case (inputs rounded to float32 first, like Rust reads them)."""
     t = lambda a: torch.from_numpy(np.asarray(a, np.float32).astype(np.float64)).to(dtype)[None]
     albedo = None if case["albedo"] is None else t(case["albedo"])
+    aux = None if case["aux"] is None else t(case["aux"])
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
-                      case["fixed_range"], case["exposure"], case["upsample"])
+                      case["fixed_range"], case["exposure"], case["upsample"],
+                      case["range_opening"], aux)
     return out[0].double().numpy()
 
 
@@ -134,9 +176,10 @@ def main(argv=None):
     doc = {"tolerance": TOLERANCE, "logit_max": LOGIT_MAX, "cases": []}
     for case in cases():
         out = run(case, torch.float64)
-        entry = {k: v for k, v in case.items() if k not in ("rgb", "albedo", "filters")}
+        entry = {k: v for k, v in case.items() if k not in ("rgb", "albedo", "aux", "filters")}
         entry["rgb"] = _flat(case["rgb"])
         entry["albedo"] = None if case["albedo"] is None else _flat(case["albedo"])
+        entry["aux"] = None if case["aux"] is None else _flat(case["aux"])
         entry["filters"] = [_flat(f) for f in case["filters"]]
         entry["out"] = _flat(out, 10)
         doc["cases"].append(entry)
