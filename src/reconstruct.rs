@@ -47,7 +47,7 @@ pub const RANGE_FLOOR: f32 = 0.02;
 
 /// The aux-guided opening (docs/reconstruction.md, "Aux-guided opening"): two pixels lie on
 /// one surface when the L1 distance of their aux planes is at most this.
-pub const AUX_SAME: f64 = 0.3;
+pub const AUX_SAME: f32 = 0.3;
 
 /// A pixel with no 3x3 neighbour on its own surface stays a feature of its own only with
 /// an emitter's albedo, every channel at least this (temc-render writes 1 for emitters,
@@ -336,52 +336,107 @@ fn luminance(x: &[f32], n: usize) -> Vec<f32> {
 /// its albedo is an emitter's ([`EMITTER_ALBEDO`]). Erosion and dilation over one symmetric
 /// relation: an opening (idempotent, never above `luma`).
 fn aux_opened(luma: &[f32], aux: RangeAux<'_>, h: usize, w: usize) -> Vec<f32> {
-    let n = h * w;
-    let same: Vec<u16> = (0..n).map(|i| surface_taps(aux, i, h, w)).collect();
-    let loose: Vec<bool> = (0..n)
-        .map(|i| same[i].count_ones() <= 1 && !is_emitter(aux, i, n))
-        .collect();
-    let masks: Vec<u16> = (0..n)
-        .map(|i| {
-            let (y, x) = (i / w, i % w);
-            (0..9u16).fold(same[i], |m, t| {
-                let (yy, xx) = (
-                    (y + t as usize / 3).wrapping_sub(1),
-                    (x + t as usize % 3).wrapping_sub(1),
-                );
-                let linked = yy < h && xx < w && (loose[i] || loose[yy * w + xx]);
-                if linked {
-                    m | 1 << t
-                } else {
-                    m
-                }
-            })
-        })
-        .collect();
-    let eroded = masked_window3(luma, &masks, h, w, f32::min, f32::INFINITY);
-    masked_window3(&eroded, &masks, h, w, f32::max, f32::NEG_INFINITY)
+    let links = Links::new(aux, h, w);
+    let eroded = links.window(luma, |a, b| if b < a { b } else { a });
+    links.window(&eroded, |a, b| if b > a { b } else { a })
 }
 
-/// Bit 3 (dy + 1) + (dx + 1) set for each tap of pixel `i`'s 3x3 window inside the image
-/// on its surface (the centre always).
-fn surface_taps(aux: RangeAux<'_>, i: usize, h: usize, w: usize) -> u16 {
-    let n = h * w;
-    let (y, x) = (i / w, i % w);
-    let mut same = 0u16;
-    for t in 0..9 {
-        let (yy, xx) = ((y + t / 3).wrapping_sub(1), (x + t % 3).wrapping_sub(1));
-        if yy >= h || xx >= w {
-            continue;
+/// The four forward neighbours (dy, dx) of a pixel; each link is stored once, at the pixel
+/// before it, and read from both ends (the relation is symmetric).
+const FORWARD: [(usize, isize); 4] = [(0, 1), (1, -1), (1, 0), (1, 1)];
+
+/// Which 3x3 neighbours the aux-guided opening links, per pixel and forward neighbour.
+struct Links {
+    h: usize,
+    w: usize,
+    /// `FORWARD[k]`'s link of pixel i at `k * n + i`; false where the neighbour is outside.
+    fwd: Vec<bool>,
+}
+
+impl Links {
+    /// Row by row, so the rows read stay in cache: the aux distance to each forward
+    /// neighbour over all planes (vectorisable), then the loose pixels' links added.
+    fn new(aux: RangeAux<'_>, h: usize, w: usize) -> Links {
+        let n = h * w;
+        let mut fwd = vec![false; 4 * n];
+        let mut count = vec![0u8; n];
+        let mut dist = vec![0.0f32; w];
+        for y in 0..h {
+            for (k, &off) in FORWARD.iter().enumerate() {
+                let Some((i, q, len)) = row_span(h, w, y, off) else {
+                    continue;
+                };
+                let d = &mut dist[..len];
+                d.fill(0.0);
+                for plane in aux.planes.chunks_exact(n).take(aux.count) {
+                    for ((d, a), b) in d.iter_mut().zip(&plane[i..][..len]).zip(&plane[q..][..len])
+                    {
+                        *d += (b - a).abs();
+                    }
+                }
+                for (j, &d) in d.iter().enumerate() {
+                    let linked = d <= AUX_SAME;
+                    fwd[k * n + i + j] = linked;
+                    count[i + j] += linked as u8;
+                    count[q + j] += linked as u8;
+                }
+            }
         }
-        let q = yy * w + xx;
-        let d: f64 = (0..aux.count)
-            .map(|c| (aux.planes[c * n + q] as f64 - aux.planes[c * n + i] as f64).abs())
-            .sum();
-        if d <= AUX_SAME {
-            same |= 1 << t;
+        let loose: Vec<bool> = (0..n)
+            .map(|i| count[i] == 0 && !is_emitter(aux, i, n))
+            .collect();
+        for y in 0..h {
+            for (k, &off) in FORWARD.iter().enumerate() {
+                if let Some((i, q, len)) = row_span(h, w, y, off) {
+                    for j in 0..len {
+                        fwd[k * n + i + j] |= loose[i + j] || loose[q + j];
+                    }
+                }
+            }
         }
+        Links { h, w, fwd }
     }
-    same
+
+    /// `op` (min or max) of each pixel and its linked neighbours in `x`: row by row, per
+    /// forward neighbour one pass for the pixel and one for the neighbour (branch-free;
+    /// `op` a compare-and-select, which vectorises where f32::min does not: the values
+    /// are finite).
+    fn window(&self, x: &[f32], op: impl Fn(f32, f32) -> f32 + Copy) -> Vec<f32> {
+        let n = self.h * self.w;
+        let mut out = x.to_vec();
+        for y in 0..self.h {
+            for (k, &off) in FORWARD.iter().enumerate() {
+                let Some((i, q, len)) = row_span(self.h, self.w, y, off) else {
+                    continue;
+                };
+                let f = &self.fwd[k * n + i..][..len];
+                let o = &mut out[i..][..len];
+                for ((o, &v), &l) in o.iter_mut().zip(&x[q..][..len]).zip(f) {
+                    *o = if l { op(*o, v) } else { *o };
+                }
+                let o = &mut out[q..][..len];
+                for ((o, &v), &l) in o.iter_mut().zip(&x[i..][..len]).zip(f) {
+                    *o = if l { op(*o, v) } else { *o };
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Row `y`'s span (first pixel, its neighbour at `(dy, dx)`, length) of the pixels of an
+/// `h` x `w` image whose neighbour there lies inside, if any; dy >= 0.
+fn row_span(
+    h: usize,
+    w: usize,
+    y: usize,
+    (dy, dx): (usize, isize),
+) -> Option<(usize, usize, usize)> {
+    let len = w.saturating_sub(dx.unsigned_abs());
+    (y + dy < h && len > 0).then(|| {
+        let i = y * w + dx.min(0).unsigned_abs();
+        (i, (i + dy * w).wrapping_add_signed(dx), len)
+    })
 }
 
 /// Whether pixel `i` (of `n`) has an emitter's albedo: every albedo channel at least
@@ -389,26 +444,6 @@ fn surface_taps(aux: RangeAux<'_>, i: usize, h: usize, w: usize) -> u16 {
 fn is_emitter(aux: RangeAux<'_>, i: usize, n: usize) -> bool {
     aux.albedo
         .is_some_and(|a| (a..a + 3).all(|c| aux.planes[c * n + i] >= EMITTER_ALBEDO))
-}
-
-/// `op` over the taps of each pixel's 3x3 window that its mask (of [`surface_taps`]) holds.
-fn masked_window3(
-    x: &[f32],
-    masks: &[u16],
-    h: usize,
-    w: usize,
-    op: impl Fn(f32, f32) -> f32,
-    identity: f32,
-) -> Vec<f32> {
-    (0..h * w)
-        .map(|i| {
-            let (y, xx) = (i / w, i % w);
-            (0..9)
-                .filter(|t| masks[i] & (1 << t) != 0)
-                .map(|t| x[(y + t / 3 - 1) * w + xx + t % 3 - 1])
-                .fold(identity, &op)
-        })
-        .collect()
 }
 
 /// The 2x2 mean of each of `planes` planes of `h` x `w` (D of the spec; keeps the mean).
