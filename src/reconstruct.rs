@@ -54,6 +54,11 @@ pub const AUX_SAME: f32 = 0.3;
 /// Blender's Cycles their emission, which the aux encoding clamps to 1).
 pub const EMITTER_ALBEDO: f32 = 0.95;
 
+/// With the coarse clamp (`temc.coarse_clamp`), a coarse level's correction may add at
+/// most this multiple of the finer level's own value: a firefly a coarse level spreads
+/// cannot raise its dark surroundings into a block.
+pub const COARSE_GAIN: f32 = 1.0;
+
 /// What the fixed range term opens (`temc.range_opening`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RangeOpening {
@@ -111,6 +116,9 @@ pub struct Params {
     pub exposure: f32,
     /// What the fixed range term opens (`temc.range_opening`); `Aux` needs the aux planes.
     pub range_opening: RangeOpening,
+    /// Each coarse correction is capped at [`COARSE_GAIN`] times the finer value it is
+    /// added to (`temc.coarse_clamp`).
+    pub coarse_clamp: bool,
     /// How the composition brings a coarse level's correction to the finer one
     /// (`temc.upsample`).
     pub upsample: Upsample,
@@ -214,11 +222,11 @@ pub fn reconstruct(
         let (hl, wl) = (h >> l, w >> l);
         let n = hl * wl;
         let f = filters[l];
-        let up = p.upsample;
-        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl, up);
+        let how = (p.upsample, p.coarse_clamp);
+        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl, how);
         for c in 0..3 {
             let (fine, coarse) = (&mut fc[c * n..][..n], &cc[c * n / 4..][..n / 4]);
-            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl, up);
+            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl, how);
         }
         (cy, cc) = (fy, fc);
     }
@@ -754,7 +762,15 @@ impl Scratch {
 }
 
 /// In place: `fine += sigmoid(blend) * U(coarse - D(fine))` (step 4 of the spec).
-fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize, up: Upsample) {
+fn compose(
+    fine: &mut [f32],
+    coarse: &[f32],
+    blend: &[f32],
+    h: usize,
+    w: usize,
+    (up, clamp): (Upsample, bool),
+) {
+    let cap = |f: f32, c: f32| if clamp { c.min(COARSE_GAIN * f.max(0.0)) } else { c };
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
         .expect("one coarse plane");
     let coarse = ArrayView2::from_shape(detail.dim(), coarse).expect("a coarse plane");
@@ -767,7 +783,7 @@ fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize, 
     match up {
         Upsample::Nearest => Zip::indexed(&mut fine)
             .and(blend)
-            .for_each(|(y, x), f, &b| *f += b * detail[[y / 2, x / 2]]),
+            .for_each(|(y, x), f, &b| *f += b * cap(*f, detail[[y / 2, x / 2]])),
         Upsample::Bilinear => {
             let (ys, xs) = (bilinear_taps(h), bilinear_taps(w));
             Zip::indexed(&mut fine)
@@ -776,7 +792,7 @@ fn compose(fine: &mut [f32], coarse: &[f32], blend: &[f32], h: usize, w: usize, 
                     let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
                     // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
                     let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
-                    *f += b * (0.75 * row(y0) + 0.25 * row(y1));
+                    *f += b * cap(*f, 0.75 * row(y0) + 0.25 * row(y1));
                 })
         }
     }
@@ -911,6 +927,7 @@ mod tests {
             exposure: 1.0,
             upsample: Upsample::Nearest,
             range_opening: RangeOpening::Plain,
+            coarse_clamp: false,
         }
     }
 
@@ -1404,6 +1421,37 @@ mod tests {
         assert!(reconstruct(&p, &rgb, None, Some(short), &fr, h, w).is_err());
     }
 
+    /// With the coarse clamp a coarse level's correction at most doubles a fine value
+    /// (COARSE_GAIN 1): a firefly on a dark floor, box kernels, blends wide open, comes out
+    /// nowhere above twice what the finest level alone gives; without the clamp the coarse
+    /// levels raise the floor around it far more (the block).
+    #[test]
+    fn the_coarse_clamp_caps_what_coarse_levels_add() {
+        let (h, w, k, levels) = (16, 16, 3, 3);
+        let n = h * w;
+        let fly = 9 * w + 6;
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| if i % n == fly { 700.0 } else { 0.01 })
+            .collect();
+        let blends_open = |l: usize| {
+            let nl = (h >> l) * (w >> l);
+            let mut f = vec![0.0; channels(k, false) * nl];
+            f[2 * k * k * nl..].fill(LOGIT_MAX);
+            f
+        };
+        let f: Vec<Vec<f32>> = (0..levels).map(blends_open).collect();
+        let fine = run(&params(1, k), &rgb, None, &f[..1], h, w);
+        let free = run(&params(levels, k), &rgb, None, &f, h, w);
+        let capped = Params {
+            coarse_clamp: true,
+            ..params(levels, k)
+        };
+        let out = run(&capped, &rgb, None, &f, h, w);
+        let ratio = |o: &[f32], i| lum(o, n, i) / lum(&fine, n, i);
+        assert!((0..n).all(|i| ratio(&out, i) <= 2.0 + 1e-4));
+        assert!((0..n).any(|i| ratio(&free, i) > 10.0), "the block it caps");
+    }
+
     fn json_f32(v: &serde_json::Value) -> f32 {
         match v {
             serde_json::Value::String(s) => match s.as_str() {
@@ -1456,6 +1504,7 @@ mod tests {
                     RangeOpening::from_name(o)
                         .unwrap_or_else(|| panic!("{name}: bad range_opening {o}"))
                 },
+                coarse_clamp: case["coarse_clamp"].as_bool().unwrap_or(false),
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));

@@ -318,8 +318,7 @@ fn each_builtin_model_tiled_equals_untiled_with_its_measured_overlap() {
         drop(f);
         (out, tiles)
     };
-    // High runs balanced's bytes (src/filter/builtin.rs).
-    for q in [Quality::Fast, Quality::Balanced] {
+    for q in [Quality::Fast, Quality::Balanced, Quality::High] {
         let (untiled, one) = run(q, 4096);
         let (tiled, many) = run(q, 48);
         assert_eq!(one, 1);

@@ -98,8 +98,7 @@ fn check_golden(model: &Model, name: &str, golden: &std::path::Path) {
 
 #[test]
 fn shipped_temc2_models_match_onnxruntime() {
-    // No temc2-high file while high runs the balanced model (src/filter/builtin.rs).
-    for q in ["fast", "balanced"] {
+    for q in ["fast", "balanced", "high"] {
         check_shipped(&format!("temc2-{q}"), "temc2");
     }
 }

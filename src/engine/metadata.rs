@@ -61,6 +61,8 @@ pub struct ModelInfo {
     /// What the fixed range term opens (`temc.range_opening`: `plain`, the default when
     /// absent, or `aux`, the aux-guided opening).
     pub range_opening: RangeOpening,
+    /// Whether the level composition caps each coarse correction (`temc.coarse_clamp`).
+    pub coarse_clamp: bool,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -138,6 +140,7 @@ impl ModelInfo {
         };
         let guide = flag("temc.guide")?;
         let fixed_range = flag("temc.fixed_range")?;
+        let coarse_clamp = flag("temc.coarse_clamp")?;
         let upsample = match raw.get("temc.upsample") {
             None => Upsample::Nearest,
             Some(v) => Upsample::from_name(v).ok_or_else(|| {
@@ -210,6 +213,7 @@ impl ModelInfo {
             fixed_range,
             upsample,
             range_opening,
+            coarse_clamp,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,
@@ -285,6 +289,7 @@ mod tests {
             ("temc.test_relmse", "none"),
             ("temc.upsample", "nearest"),
             ("temc.range_opening", "aux"),
+            ("temc.coarse_clamp", "1"),
             ("other.key", "ignored"),
         ]
     }
@@ -301,6 +306,7 @@ mod tests {
         assert!(!m.raw.contains_key("other.key"));
         assert_eq!(m.upsample, Upsample::Nearest);
         assert_eq!(m.range_opening, RangeOpening::Aux);
+        assert!(m.coarse_clamp);
         let without = card()
             .into_iter()
             .filter(|(k, _)| *k != "temc.range_opening");
@@ -339,6 +345,7 @@ mod tests {
             ("temc.width", Some("-1")),
             ("temc.upsample", Some("cubic")),
             ("temc.range_opening", Some("closed")),
+            ("temc.coarse_clamp", Some("yes")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

@@ -386,6 +386,7 @@ fn denoise_tile(
         exposure,
         upsample: info.upsample,
         range_opening: info.range_opening,
+        coarse_clamp: info.coarse_clamp,
     };
     let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
     let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));

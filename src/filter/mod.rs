@@ -52,8 +52,7 @@ pub enum Quality {
     Fast = 4,
     /// The default trade-off.
     Balanced = 5,
-    /// Best quality. For now the balanced network, until a high model beats it
-    /// (src/filter/builtin.rs).
+    /// Best quality: 3 pyramid levels (src/filter/builtin.rs).
     High = 6,
 }
 

@@ -128,6 +128,7 @@ class Checkpoint:
         model.fixed_range = r["fixed_range"]
         model.upsample = r["upsample"]
         model.range_opening = r["range_opening"]
+        model.coarse_clamp = r["coarse_clamp"]
         return model, arch, float(width)
 
     # -- writing -----------------------------------------------------------------------

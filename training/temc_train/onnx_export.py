@@ -41,7 +41,8 @@ def recon_of(model) -> dict:
             "eps": float(getattr(model, "eps", d["eps"])), "guide": bool(getattr(model, "guide", d["guide"])),
             "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"])),
             "upsample": getattr(model, "upsample", d["upsample"]),
-            "range_opening": getattr(model, "range_opening", d["range_opening"])}
+            "range_opening": getattr(model, "range_opening", d["range_opening"]),
+            "coarse_clamp": bool(getattr(model, "coarse_clamp", d["coarse_clamp"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -68,6 +69,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.fixed_range": "1" if recon.get("fixed_range") else "0",
         "temc.upsample": recon.get("upsample", "nearest"),
         "temc.range_opening": recon.get("range_opening", "plain"),
+        "temc.coarse_clamp": "1" if recon.get("coarse_clamp") else "0",
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

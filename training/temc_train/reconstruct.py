@@ -31,6 +31,10 @@ RANGE_FLOOR = 0.02
 AUX_SAME = 0.3
 EMITTER_ALBEDO = 0.95
 RANGE_OPENINGS = ("plain", "aux")
+# The coarse clamp (docs/reconstruction.md, step 4): a coarse level's correction adds at most
+# COARSE_GAIN times the finer level's own value, so a firefly a coarse level spreads cannot
+# raise its dark surroundings into a block (keep-mean returns what it holds back).
+COARSE_GAIN = 1.0
 
 
 def channels(kernel, guide=False):
@@ -188,11 +192,15 @@ def _up(x, upsample="nearest"):
     return x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
 
 
-def _compose(fine, coarse, blend, upsample="nearest"):
+def _compose(fine, coarse, blend, upsample="nearest", clamp=False):
     """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies.
     The correction, not each term, is upsampled: with `bilinear` the coarse level's blocks
-    no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4)."""
-    return fine + torch.sigmoid(blend) * _up(coarse - F.avg_pool2d(fine, 2), upsample)
+    no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4). `clamp`:
+    the correction is capped at COARSE_GAIN times the fine value."""
+    c = _up(coarse - F.avg_pool2d(fine, 2), upsample)
+    if clamp:
+        c = torch.minimum(c, COARSE_GAIN * fine.clamp(min=0.0))
+    return fine + torch.sigmoid(blend) * c
 
 
 def _recombine(cy, cc):
@@ -208,7 +216,8 @@ def _recombine(cy, cc):
 
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
-                fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None):
+                fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None,
+                coarse_clamp=False):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
@@ -216,7 +225,8 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     scaled), read only by that term. `upsample`: how the composition brings a coarse
     level's correction to the finer one (UPSAMPLES; `temc.upsample`). `range_opening`
     (RANGE_OPENINGS; `temc.range_opening`): `aux` opens the fixed range term's luminance
-    with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level."""
+    with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level.
+    `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction (_compose)."""
     if range_opening not in RANGE_OPENINGS:
         raise ValueError(f"range_opening must be one of {RANGE_OPENINGS}, got {range_opening!r}")
     for level, f in enumerate(filters):
@@ -236,7 +246,8 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
         levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level]))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
-        cy, cc = _compose(fy, cy, a, upsample), _compose(fc, cc, b, upsample)
+        cy = _compose(fy, cy, a, upsample, coarse_clamp)
+        cc = _compose(fc, cc, b, upsample, coarse_clamp)
     out = _recombine(cy, cc)
     if demodulate:
         out = out * d
@@ -265,6 +276,7 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
                       recon["eps"], guide=recon.get("guide", False),
                       fixed_range=recon.get("fixed_range", False), scale=scale,
                       upsample=recon.get("upsample", "nearest"),
-                      range_opening=recon.get("range_opening", "plain"), aux=aux_t)
+                      range_opening=recon.get("range_opening", "plain"), aux=aux_t,
+                      coarse_clamp=recon.get("coarse_clamp", False))
     out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
     return keep_mean_stage(out, radiance) if keep else out

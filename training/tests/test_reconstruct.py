@@ -32,6 +32,7 @@ def decode(case):
     c["albedo"] = None if case["albedo"] is None else arr(case["albedo"], h, w)
     c["aux"] = None if case.get("aux") is None else arr(case["aux"], h, w)
     c.setdefault("range_opening", "plain")
+    c.setdefault("coarse_clamp", False)
     return c
 
 
@@ -293,3 +294,25 @@ def test_the_aux_guided_opening_is_the_plain_one_on_one_surface_and_never_above_
     aux = (torch.rand(1, 7, 12, 20, generator=gen) > 0.5).float() * 0.4
     o = aux_opened(y, aux)
     assert (o <= y).all() and torch.equal(aux_opened(o, aux), o)
+
+
+def test_the_coarse_clamp_caps_what_coarse_levels_add():
+    # The Rust test of the same name: a firefly on a dark floor, box kernels, blends wide
+    # open; with the clamp nothing exceeds twice the finest level alone, without it the
+    # coarse levels raise the floor around the firefly more than tenfold.
+    rgb = torch.full((1, 3, 16, 16), 0.01)
+    rgb[:, :, 9, 6] = 700.0
+
+    def filters(levels):
+        out = []
+        for l in range(levels):
+            f = torch.zeros(1, channels(3), 16 >> l, 16 >> l)
+            f[:, 18:] = LOGIT_MAX
+            out.append(f)
+        return out
+
+    fine = lum(reconstruct(rgb, None, filters(1), 3))
+    capped = lum(reconstruct(rgb, None, filters(3), 3, coarse_clamp=True))
+    free = lum(reconstruct(rgb, None, filters(3), 3))
+    assert float((capped / fine).max()) <= 2.0 + 1e-4
+    assert float((free / fine).max()) > 10.0

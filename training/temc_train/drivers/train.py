@@ -64,7 +64,7 @@ def recon_settings(a) -> dict:
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
             "fixed_range": bool(a.fixed_range), "upsample": a.upsample,
-            "range_opening": a.range_opening}
+            "range_opening": a.range_opening, "coarse_clamp": bool(a.coarse_clamp)}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -77,7 +77,8 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
                        rs["eps"], guide=rs.get("guide", False),
                        fixed_range=rs.get("fixed_range", False),
                        upsample=rs.get("upsample", "nearest"),
-                       range_opening=rs.get("range_opening", "plain"), aux=xs[2])
+                       range_opening=rs.get("range_opening", "plain"), aux=xs[2],
+                       coarse_clamp=rs.get("coarse_clamp", False))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -374,6 +375,11 @@ def resume_model(a, model, ckpt_path, rs):
         held_recon["range_opening"] = rs["range_opening"]
         ck.recon = dict(ck.recon, range_opening=rs["range_opening"])
         ck.state["range_opening_from_step"] = ck.state["step"]
+    if held_recon["coarse_clamp"] != rs["coarse_clamp"]:
+        # Fixed too (a cap in the composition, no weights): switchable at any step.
+        held_recon["coarse_clamp"] = rs["coarse_clamp"]
+        ck.recon = dict(ck.recon, coarse_clamp=rs["coarse_clamp"])
+        ck.state["coarse_clamp_from_step"] = ck.state["step"]
     held = (ck.arch, ck.width, held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
@@ -632,6 +638,9 @@ def main(argv=None):
                          "the full-resolution luminance over each pixel's neighbours on its own "
                          "surface (aux; docs/reconstruction.md, \"Aux-guided opening\"); a run "
                          "may switch it at any step")
+    ap.add_argument("--coarse-clamp", type=int, choices=(0, 1), default=0,
+                    help="cap each coarse level's correction at COARSE_GAIN times the finer "
+                         "value (docs/reconstruction.md, step 4); a run may switch it at any step")
     ap.add_argument("--blend-logit", type=float, default=None,
                     help="on resume, set the finest level's blend biases to this once (a grown "
                          "run starts them at GROWN_BLEND_LOGIT, where lr-limited steps leave them "

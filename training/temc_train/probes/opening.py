@@ -1,8 +1,9 @@
 """What the fixed range term's opening does to accuracy: each checkpoint denoised (network +
 reconstruction + keep-mean, as the core runs it) with the plain and the aux-guided opening
-(docs/reconstruction.md, "Aux-guided opening"), against OIDN 2.5 high on the same images,
-in one run. Prints the geometric-mean RelMSE over OIDN high's per spp, and the scenes the
-aux-guided opening moved most.
+(docs/reconstruction.md, "Aux-guided opening"), and for multi-level models also with the
+coarse clamp (step 4), against OIDN 2.5 high on the same images, in one run. Prints the
+geometric-mean RelMSE over OIDN high's per spp, and the scenes the aux-guided opening moved
+most.
 
     python -m temc_train.probes.opening --data ../data/spectral-v2 --generated 32 \\
         --checkpoint runs/temc2-w0.125-energy/checkpoint.pt
@@ -16,14 +17,23 @@ import numpy as np
 from .. import color, evaluate as ev
 from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
-from ..reconstruct import RANGE_OPENINGS, denoise_image
+from ..reconstruct import denoise_image
 from .report import read_test_scenes
 
 SPPS = (4, 16, 64)
+# The reconstruction variants compared: name -> settings over the checkpoint's own.
+VARIANTS = {"plain": {"range_opening": "plain", "coarse_clamp": False},
+            "aux": {"range_opening": "aux", "coarse_clamp": False},
+            "aux, clamp": {"range_opening": "aux", "coarse_clamp": True}}
+
+
+def variants(recon):
+    """The VARIANTS that differ for a model: the clamp only where there are coarse levels."""
+    return [v for v in VARIANTS if recon["levels"] > 1 or not VARIANTS[v]["coarse_clamp"]]
 
 
 def scene_errors(rec, root, models):
-    """{(model, opening or "OIDN high", spp): RelMSE} of one test scene."""
+    """{(model, variant or "OIDN high", spp): RelMSE} of one test scene."""
     d = os.path.join(root, rec["dir"])
     ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
     out = {}
@@ -35,16 +45,38 @@ def scene_errors(rec, root, models):
         aux = np.moveaxis(color.aux_channels(layers["albedo"], layers["normal"], layers["depth"]), 0, -1)
         scale = auto_input_scale(layers["color"])
         for name, (model, recon) in models.items():
-            for opening in RANGE_OPENINGS:
-                r = dict(recon, fixed_range=True, range_opening=opening)
+            for v in variants(recon):
+                r = dict(recon, fixed_range=True, **VARIANTS[v])
                 img = denoise_image(model, r, layers["color"], aux, scale)
-                out[(name, opening, spp)] = ev.relmse(img, ref)
+                out[(name, v, spp)] = ev.relmse(img, ref)
     return out
+
+
+# Families of our data set's test split, by name (report.py's grouping).
+FAMILIES = (("hand-written", "named-"), ("held-out", "holdout-"), ("generated", "scene-"))
 
 
 def geomean_ratio(rows, key, spp):
     return float(np.exp(np.mean([np.log(r[key + (spp,)] / r[("OIDN high", "", spp)])
                                  for r in rows.values()])))
+
+
+def cells(rows, name, recon):
+    """One table row's cells: per spp, each variant's ratio, joined by arrows."""
+    return [" -> ".join(f"{geomean_ratio(rows, (name, v), s):.2f}" for v in variants(recon))
+            for s in SPPS]
+
+
+def family_lines(rows, models):
+    """Per model and family of our test split (when it has more than one)."""
+    out = []
+    for family, prefix in FAMILIES:
+        sub = {k: v for k, v in rows.items() if k.startswith(prefix)}
+        if not sub or len(sub) == len(rows):
+            continue
+        for name, (_, recon) in models.items():
+            out.append(f"| {name}, {family} ({len(sub)}) | " + " | ".join(cells(sub, name, recon)) + " |")
+    return out
 
 
 def main(argv=None):
@@ -60,13 +92,13 @@ def main(argv=None):
         models[os.path.basename(os.path.dirname(os.path.abspath(path)))] = (ck.build()[0].eval(), ck.recon)
     _, tests = read_test_scenes(a.data, a.generated)
     rows = {rec["name"]: scene_errors(rec, a.data, models) for rec in tests}
-    print(f"{len(rows)} test scenes of {a.data}; RelMSE / OIDN high's, geometric mean, plain -> aux")
+    print(f"{len(rows)} test scenes of {a.data}; RelMSE / OIDN high's, geometric mean, "
+          + " -> ".join(VARIANTS) + " (the clamp for multi-level models only)")
     print("| model | " + " | ".join(f"{s} spp" for s in SPPS) + " |")
     print("|---|" + "---:|" * len(SPPS))
-    for name in models:
-        cells = [f"{geomean_ratio(rows, (name, 'plain'), s):.2f} -> {geomean_ratio(rows, (name, 'aux'), s):.2f}"
-                 for s in SPPS]
-        print(f"| {name} | " + " | ".join(cells) + " |")
+    for name, (_, recon) in models.items():
+        print(f"| {name} | " + " | ".join(cells(rows, name, recon)) + " |")
+    print("\n".join(family_lines(rows, models)))
     for name in models:
         moved = sorted(((r[(name, "aux", 16)] / r[(name, "plain", 16)], scene) for scene, r in rows.items()))
         print(f"{name}, aux / plain RelMSE at 16 spp: best " +

@@ -22,7 +22,7 @@ SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
 def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
-          fixed_range=False, exposure=1.0, upsample="nearest"):
+          fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -32,7 +32,7 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
-                upsample=upsample, range_opening="plain", rgb=rgb,
+                upsample=upsample, range_opening="plain", coarse_clamp=coarse_clamp, rgb=rgb,
                 albedo=albedo if demodulate else None, aux=None, filters=filters)
 
 
@@ -102,7 +102,24 @@ def cases():
     c = _case("bilinear_lamp_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, upsample="bilinear")
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
-    return out + aux_opening_cases(rng)
+    return out + aux_opening_cases(rng) + coarse_clamp_cases(rng)
+
+
+def coarse_clamp_cases(rng):
+    """The coarse clamp: a firefly on a dark floor (the coarse levels' correction capped),
+    and the whole recipe of a multi-level model with it, both compositions."""
+    out = []
+    c = _case("clamp_firefly_16x16_L3_k3", rng, 16, 16, 3, 3, sd=0.5, coarse_clamp=True)
+    c["rgb"] *= 0.01
+    c["rgb"][:, 9, 6] = 700.0
+    out.append(c)
+    for name, up in (("clamp_full_16x16_L3_k5", "nearest"), ("clamp_full_24x8_L2_k3", "bilinear")):
+        h, w, levels, kernel = (16, 16, 3, 5) if up == "nearest" else (24, 8, 2, 3)
+        c = _case(name, rng, h, w, levels, kernel, sd=1.0, guide=True, fixed_range=True,
+                  exposure=0.5, upsample=up, coarse_clamp=True)
+        c.update(range_opening="aux", aux=_aux(rng, h, w))
+        out.append(c)
+    return out
 
 
 def _aux(rng, h, w, patches=6):
@@ -153,7 +170,7 @@ def run(case, dtype):
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
                       case["fixed_range"], case["exposure"], case["upsample"],
-                      case["range_opening"], aux)
+                      case["range_opening"], aux, case["coarse_clamp"])
     return out[0].double().numpy()
 
 
