@@ -770,7 +770,13 @@ fn compose(
     w: usize,
     (up, clamp): (Upsample, bool),
 ) {
-    let cap = |f: f32, c: f32| if clamp { c.min(COARSE_GAIN * f.max(0.0)) } else { c };
+    let cap = |f: f32, c: f32| {
+        if clamp {
+            c.min(COARSE_GAIN * f.max(0.0))
+        } else {
+            c
+        }
+    };
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
         .expect("one coarse plane");
     let coarse = ArrayView2::from_shape(detail.dim(), coarse).expect("a coarse plane");
