@@ -59,6 +59,11 @@ from . import shard
 from .distributed import Group
 
 
+# The reconstruction settings a resumed run may change (recon_settings' keys): the fixed
+# range term, the composition's upsampling, the range term's opening, the coarse clamp.
+SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp")
+
+
 def recon_settings(a) -> dict:
     """The reconstruction a run trains for; stored in its checkpoints and exported."""
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
@@ -360,26 +365,13 @@ def resume_model(a, model, ckpt_path, rs):
     grow = a.levels > held_recon["levels"]
     if grow:
         held_recon["levels"] = a.levels
-    if held_recon["fixed_range"] != rs["fixed_range"]:
-        # A fixed term, nothing to learn or load: a run may switch it at any step.
-        held_recon["fixed_range"] = rs["fixed_range"]
-        ck.recon = dict(ck.recon, fixed_range=rs["fixed_range"])
-        ck.state["fixed_range_from_step"] = ck.state["step"]
-    if held_recon["upsample"] != rs["upsample"]:
-        # Also fixed (the composition's interpolation, no weights): switchable at any step.
-        held_recon["upsample"] = rs["upsample"]
-        ck.recon = dict(ck.recon, upsample=rs["upsample"])
-        ck.state["upsample_from_step"] = ck.state["step"]
-    if held_recon["range_opening"] != rs["range_opening"]:
-        # Fixed as well (what the range term opens, no weights): switchable at any step.
-        held_recon["range_opening"] = rs["range_opening"]
-        ck.recon = dict(ck.recon, range_opening=rs["range_opening"])
-        ck.state["range_opening_from_step"] = ck.state["step"]
-    if held_recon["coarse_clamp"] != rs["coarse_clamp"]:
-        # Fixed too (a cap in the composition, no weights): switchable at any step.
-        held_recon["coarse_clamp"] = rs["coarse_clamp"]
-        ck.recon = dict(ck.recon, coarse_clamp=rs["coarse_clamp"])
-        ck.state["coarse_clamp_from_step"] = ck.state["step"]
+    for key in SWITCHABLE:
+        # Fixed functions of the reconstruction (no weights to learn or load): a run may
+        # switch any of them at any step; the checkpoint records where.
+        if held_recon[key] != rs[key]:
+            held_recon[key] = rs[key]
+            ck.recon = dict(ck.recon, **{key: rs[key]})
+            ck.state[f"{key}_from_step"] = ck.state["step"]
     held = (ck.arch, ck.width, held_recon)
     if held != (a.arch, a.width, rs):
         raise SystemExit(f"{ckpt_path} holds {held}, not {(a.arch, a.width, rs)}")
