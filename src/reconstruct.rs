@@ -30,9 +30,10 @@ const GREY_PULL: f32 = 1.0e-6;
 
 /// The most floats per window pixel that [`reconstruct`] holds besides its inputs and its
 /// [3, H, W] output (for memory budgets): the demodulated copy 3, the level-0 luminance 1,
-/// and fy and fc 4. Coarser levels add a third of the last at most, after the luminance
-/// plane is freed; the per-row weights are k^2 x 128 floats.
-pub const SCRATCH_PLANES: f64 = 8.0;
+/// fy and fc 4, and the aux-guided opening's plane 1 (while it is made, its links, 6 bytes
+/// a pixel, and two planes stand in for fy and fc). Coarser levels add a third of the last
+/// at most, after the luminance plane is freed; the per-row weights are k^2 x 128 floats.
+pub const SCRATCH_PLANES: f64 = 9.0;
 
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
