@@ -480,12 +480,15 @@ fn range_guide(
     w: usize,
     exposure: f32,
 ) -> Vec<f32> {
-    let plain = || window3(&window3(luma, h, w, f32::min), h, w, f32::max);
-    opened
-        .map_or_else(plain, <[f32]>::to_vec)
-        .into_iter()
-        .map(|v| (v.max(0.0) * exposure + RANGE_FLOOR).log2())
-        .collect()
+    let guide = |o: &[f32]| {
+        o.iter()
+            .map(|v| (v.max(0.0) * exposure + RANGE_FLOOR).log2())
+            .collect()
+    };
+    match opened {
+        Some(o) => guide(o),
+        None => guide(&window3(&window3(luma, h, w, f32::min), h, w, f32::max)),
+    }
 }
 
 /// `op` (min or max: exact, so the order does not matter) over each pixel's 3x3 window,

@@ -141,22 +141,18 @@ impl ModelInfo {
         let guide = flag("temc.guide")?;
         let fixed_range = flag("temc.fixed_range")?;
         let coarse_clamp = flag("temc.coarse_clamp")?;
-        let upsample = match raw.get("temc.upsample") {
-            None => Upsample::Nearest,
-            Some(v) => Upsample::from_name(v).ok_or_else(|| {
-                Error::Model(format!(
-                    "metadata `temc.upsample` = {v:?} must be \"nearest\" or \"bilinear\""
-                ))
-            })?,
-        };
-        let range_opening = match raw.get("temc.range_opening") {
-            None => RangeOpening::Plain,
-            Some(v) => RangeOpening::from_name(v).ok_or_else(|| {
-                Error::Model(format!(
-                    "metadata `temc.range_opening` = {v:?} must be \"plain\" or \"aux\""
-                ))
-            })?,
-        };
+        let upsample = named(
+            &raw,
+            "temc.upsample",
+            Upsample::from_name,
+            ["nearest", "bilinear"],
+        )?;
+        let range_opening = named(
+            &raw,
+            "temc.range_opening",
+            RangeOpening::from_name,
+            ["plain", "aux"],
+        )?;
         let alignment: usize = num("temc.alignment", get("temc.alignment")?)?;
         if alignment == 0 || !alignment.is_power_of_two() {
             return Err(Error::Model(format!(
@@ -223,6 +219,13 @@ impl ModelInfo {
         })
     }
 
+    /// The first plane of aux buffer `name` among the network's aux planes, if the layout
+    /// has it.
+    pub fn aux_plane(&self, name: &str) -> Option<usize> {
+        let i = self.aux_planes.iter().position(|(n, _)| n == name)?;
+        Some(self.aux_planes[..i].iter().map(|(_, c)| c).sum())
+    }
+
     /// True when the weights were never trained (test and benchmark models).
     pub fn is_untrained(&self) -> bool {
         self.dataset == "none"
@@ -232,6 +235,23 @@ impl ModelInfo {
     /// and, with `guide`, two guides.
     pub fn filter_channels(&self) -> usize {
         crate::reconstruct::channels(self.kernel, self.guide)
+    }
+}
+
+/// An optional key naming one of `T`'s values (`from_name`, which knows `names`); absent:
+/// `T::default()`.
+fn named<T: Default>(
+    raw: &BTreeMap<String, String>,
+    key: &str,
+    from_name: fn(&str) -> Option<T>,
+    names: [&str; 2],
+) -> Result<T, Error> {
+    match raw.get(key) {
+        None => Ok(T::default()),
+        Some(v) => from_name(v).ok_or_else(|| {
+            let [a, b] = names;
+            Error::Model(format!("metadata `{key}` = {v:?} must be {a:?} or {b:?}"))
+        }),
     }
 }
 
@@ -301,6 +321,10 @@ mod tests {
         assert_eq!((m.alignment, m.chroma_channels, m.aux_channels), (32, 2, 7));
         assert_eq!((m.levels, m.kernel, m.filter_channels()), (3, 5, 52));
         assert_eq!(m.aux_planes[2], ("depth".to_string(), 1));
+        assert_eq!(
+            (m.aux_plane("albedo"), m.aux_plane("depth")),
+            (Some(0), Some(6))
+        );
         assert_eq!(m.test_relmse, None);
         assert!(m.is_untrained());
         assert!(!m.raw.contains_key("other.key"));

@@ -393,22 +393,10 @@ fn denoise_tile(
     let aux = reconstruct::RangeAux {
         planes: Packed::plane(&p.aux),
         count: info.aux_channels,
-        albedo: albedo_plane(info),
+        albedo: info.aux_plane("albedo"),
     };
     let rgb = Packed::plane(&p.rgb);
     reconstruct::reconstruct(&params, rgb, albedo, Some(aux), &refs, win.h, win.w)
-}
-
-/// The first of the albedo's planes among the network's aux planes, if its layout has one.
-fn albedo_plane(info: &crate::engine::ModelInfo) -> Option<usize> {
-    let mut first = 0;
-    for (name, channels) in &info.aux_planes {
-        if name == "albedo" {
-            return Some(first);
-        }
-        first += channels;
-    }
-    None
 }
 
 /// Runs the job. With an "output" image the result is written there and `None` returned;
