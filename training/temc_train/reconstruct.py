@@ -120,13 +120,13 @@ def aux_opened(y, aux):
     return torch.where(same, _taps3(eroded)[:, 0], -big).amax(1, keepdim=True)
 
 
-def range_planes(y, levels, aux=None):
-    """The fixed range term's opened luminance per level: with `aux`, aux_opened at full
-    resolution and its 2x2 means below (a lamp the fine level keeps stays a feature at
-    every level); without, None (each level opens its own luminance)."""
+def range_planes(x, levels, aux=None):
+    """The fixed range term's opened luminance of radiance `x` per level: with `aux`,
+    aux_opened at full resolution and its 2x2 means below (a lamp the fine level keeps stays
+    a feature at every level); without, None (each level opens its own luminance)."""
     if aux is None:
         return [None] * levels
-    o = aux_opened(y.detach(), aux.detach())
+    o = aux_opened(_lum(x).detach(), aux.detach())
     out = [o]
     for _ in range(levels - 1):
         out.append(F.avg_pool2d(out[-1], 2))
@@ -238,7 +238,7 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     guided = fixed_range and range_opening == "aux"
     if guided and aux is None:
         raise ValueError("range_opening 'aux' needs the aux planes")
-    opened_ys = range_planes(_lum(x), len(filters), aux if guided else None)
+    opened_ys = range_planes(x, len(filters), aux if guided else None)
     levels = []
     for level, f in enumerate(filters):
         if level:
