@@ -15,7 +15,7 @@
 
 use std::collections::TryReserveError;
 
-use ndarray::{Array2, Array3, ArrayView2, ArrayView3, ArrayViewMut3, Axis, Zip};
+use ndarray::{Array2, Array3, ArrayView2, ArrayView3, Axis, Zip};
 
 /// Block side in pixels of the stage's first pass (docs/keep-mean-measured.md).
 pub const BLOCK: usize = 64;
@@ -49,24 +49,24 @@ pub fn stage(
     (w, h): (usize, usize),
     max: f32,
 ) -> Result<(), TryReserveError> {
-    let mut img = image(out, (w, h));
+    check(out, (w, h));
     let blocks = block_sums(input, (w, h), BLOCK);
-    rescale(img.view_mut(), &blocks, BLOCK, CLAMP, max)?;
+    rescale(out, (w, h), &blocks, BLOCK, CLAMP, max)?;
     let whole = blocks
         .sum_axis(Axis(0))
         .sum_axis(Axis(0))
         .into_shape_with_order((1, 1, 3))
         .expect("three channels");
     for _ in 0..2 {
-        rescale(img.view_mut(), &whole, w.max(h), GLOBAL_CLAMP, max)?;
+        rescale(out, (w, h), &whole, w.max(h), GLOBAL_CLAMP, max)?;
     }
     Ok(())
 }
 
-/// `out` (`w` x `h` interleaved RGB) as an (y, x, channel) view.
-fn image(out: &mut [f32], (w, h): (usize, usize)) -> ArrayViewMut3<'_, f32> {
+/// Checks that `out` holds `w` x `h` interleaved RGB pixels, at least one.
+fn check(out: &[f32], (w, h): (usize, usize)) {
     assert!(w > 0 && h > 0, "keep-mean of an empty image");
-    ArrayViewMut3::from_shape((h, w, 3), out).expect("out holds w * h RGB pixels")
+    assert_eq!(out.len(), w * h * 3, "out holds w * h RGB pixels");
 }
 
 /// Per-channel sums over `block` x `block` blocks of `w` x `h` RGB pixels given row by
@@ -76,11 +76,37 @@ fn block_sums(
     (w, h): (usize, usize),
     block: usize,
 ) -> Array3<f64> {
-    let mut sums = Array3::zeros((h.div_ceil(block), w.div_ceil(block), 3));
-    for (i, p) in pixels.enumerate() {
-        let (x, y) = (i % w, i / w);
-        for (k, v) in p.into_iter().enumerate() {
-            sums[[y / block, x / block, k]] += v as f64;
+    let gw = w.div_ceil(block);
+    let mut sums = Array3::zeros((h.div_ceil(block), gw, 3));
+    let flat = sums.as_slice_mut().expect("a fresh array is contiguous");
+    let (mut x, mut y) = (0, 0);
+    for p in pixels {
+        let s = &mut flat[((y / block) * gw + x / block) * 3..][..3];
+        for (a, v) in s.iter_mut().zip(p) {
+            *a += v as f64;
+        }
+        x += 1;
+        if x == w {
+            (x, y) = (0, y + 1);
+        }
+    }
+    sums
+}
+
+/// [`block_sums`] of interleaved RGB rows: each block's sum adds its pixels in the same
+/// order, so the result is the same to the bit.
+fn block_sums_of(out: &[f32], (w, h): (usize, usize), block: usize) -> Array3<f64> {
+    let gw = w.div_ceil(block);
+    let mut sums = Array3::zeros((h.div_ceil(block), gw, 3));
+    let flat = sums.as_slice_mut().expect("a fresh array is contiguous");
+    for (y, row) in out.chunks_exact(3 * w).enumerate() {
+        let blocks = &mut flat[(y / block) * gw * 3..][..gw * 3];
+        for (s, part) in blocks.chunks_exact_mut(3).zip(row.chunks(3 * block)) {
+            for p in part.chunks_exact(3) {
+                s[0] += p[0] as f64;
+                s[1] += p[1] as f64;
+                s[2] += p[2] as f64;
+            }
         }
     }
     sums
@@ -120,51 +146,97 @@ pub fn keep_mean(
     let block = if block == 0 { w.max(h) } else { block };
     // Every input pixel counts, a capped Inf too: the filters spread its value into its
     // neighbours, so leaving it out of the input's sum would darken its block and the image.
+    check(out, (w, h));
     let sums = block_sums(input, (w, h), block);
-    rescale(image(out, (w, h)), &sums, block, clamp, max)
+    rescale(out, (w, h), &sums, block, clamp, max)
 }
 
 /// [`keep_mean`] from the input's block sums (of [`block_sums`] at `block`).
 fn rescale(
-    mut img: ArrayViewMut3<'_, f32>,
+    out: &mut [f32],
+    (w, h): (usize, usize),
     input_sums: &Array3<f64>,
     block: usize,
     clamp: f64,
     max: f32,
 ) -> Result<(), TryReserveError> {
     assert!(clamp >= 1.0);
-    let (h, w, _) = img.dim();
-    let pixels = img.rows().into_iter().map(|p| [p[0], p[1], p[2]]);
-    let output_sums = block_sums(pixels, (w, h), block);
+    let output_sums = block_sums_of(out, (w, h), block);
     let ratio = Zip::from(input_sums)
         .and(&output_sums)
         .map_collect(|&i, &o| (if o > 0.0 { i / o } else { 1.0 }).clamp(1.0 / clamp, clamp));
-    let (_, gw, _) = ratio.dim();
-    let (xs, ys) = (axis(w, gw, block), axis(h, ratio.dim().0, block));
-    // The factor at pixel (x, y), channel k: bilinear between the block centres.
-    let factor = |x: usize, y: usize, k: usize| {
-        let ((x0, x1, fx), (y0, y1, fy)) = (xs[x], ys[y]);
-        let top = ratio[[y0, x0, k]] * (1.0 - fx) + ratio[[y0, x1, k]] * fx;
-        let bottom = ratio[[y1, x0, k]] * (1.0 - fx) + ratio[[y1, x1, k]] * fx;
-        top * (1.0 - fy) + bottom * fy
-    };
+    let mut factors = Factors::new(&ratio, (w, h), block);
     // A pixel's factor is a convex mix of block factors: none above SPREAD_ABOVE, no spread.
     if !ratio.iter().any(|&r| r > SPREAD_ABOVE) {
-        for ((y, x, k), v) in img.indexed_iter_mut() {
-            *v = ((*v as f64 * factor(x, y, k)) as f32).clamp(0.0, max);
+        for (y, row) in out.chunks_exact_mut(3 * w).enumerate() {
+            for (v, f) in row.iter_mut().zip(factors.row(y)) {
+                *v = ((*v as f64 * f) as f32).clamp(0.0, max);
+            }
         }
         return Ok(());
     }
-    let rows = row_means(img.view(), SPREAD_RADIUS)?;
+    let rows = row_means(out, (w, h), SPREAD_RADIUS)?;
     window_means(rows.view(), SPREAD_RADIUS, |y, mean| {
-        for ((x, k), v) in img.index_axis_mut(Axis(0), y).indexed_iter_mut() {
-            let f = factor(x, y, k);
+        let mean = mean.as_slice().expect("a fresh array is contiguous");
+        let row = &mut out[y * 3 * w..][..3 * w];
+        for ((v, f), m) in row.iter_mut().zip(factors.row(y)).zip(mean) {
             let scale = f.min(SPREAD_ABOVE);
-            let o = *v as f64 * scale + (f - scale) * mean[[x, k]];
+            let o = *v as f64 * scale + (f - scale) * m;
             *v = (o as f32).clamp(0.0, max);
         }
     });
     Ok(())
+}
+
+/// The factor at each pixel and channel: bilinear between the block centres, horizontally
+/// first. The two horizontal mixes of a row (its upper and lower block row) change only
+/// every `block` rows, so they are kept.
+struct Factors<'a> {
+    ratio: &'a Array3<f64>,
+    xs: Vec<(usize, usize, f64)>,
+    ys: Vec<(usize, usize, f64)>,
+    /// The block rows `top` and `bottom` hold the mixes of.
+    mixed: Option<(usize, usize)>,
+    top: Vec<f64>,
+    bottom: Vec<f64>,
+    row: Vec<f64>,
+}
+
+impl<'a> Factors<'a> {
+    fn new(ratio: &'a Array3<f64>, (w, h): (usize, usize), block: usize) -> Self {
+        let (gh, gw, _) = ratio.dim();
+        Factors {
+            ratio,
+            xs: axis(w, gw, block),
+            ys: axis(h, gh, block),
+            mixed: None,
+            top: vec![0.0; 3 * w],
+            bottom: vec![0.0; 3 * w],
+            row: vec![0.0; 3 * w],
+        }
+    }
+
+    /// Row y's factors, interleaved like the image.
+    fn row(&mut self, y: usize) -> &[f64] {
+        let (y0, y1, fy) = self.ys[y];
+        if self.mixed != Some((y0, y1)) {
+            let r = self.ratio;
+            let mix = |yb: usize, dst: &mut [f64]| {
+                for (d, &(x0, x1, fx)) in dst.chunks_exact_mut(3).zip(&self.xs) {
+                    for (k, v) in d.iter_mut().enumerate() {
+                        *v = r[[yb, x0, k]] * (1.0 - fx) + r[[yb, x1, k]] * fx;
+                    }
+                }
+            };
+            mix(y0, &mut self.top);
+            mix(y1, &mut self.bottom);
+            self.mixed = Some((y0, y1));
+        }
+        for ((f, t), b) in self.row.iter_mut().zip(&self.top).zip(&self.bottom) {
+            *f = t * (1.0 - fy) + b * fy;
+        }
+        &self.row
+    }
 }
 
 /// The window of radius `r` around `i` along an axis of `n`, clipped to it: [lo, hi).
@@ -174,19 +246,24 @@ fn window(i: usize, n: usize, r: usize) -> (usize, usize) {
 
 /// Each pixel's per-channel mean over its row segment of radius `r` (inside the image), for
 /// [`window_means`]: the window is a product of segments, so its mean is separable.
-fn row_means(img: ArrayView3<'_, f32>, r: usize) -> Result<Array3<f32>, TryReserveError> {
-    let (h, w, _) = img.dim();
+fn row_means(
+    img: &[f32],
+    (w, h): (usize, usize),
+    r: usize,
+) -> Result<Array3<f32>, TryReserveError> {
     let mut rows = Vec::new();
     rows.try_reserve_exact(w * h * 3)?;
-    let mut prefix = Array2::<f64>::zeros((w + 1, 3));
-    for line in img.outer_iter() {
-        for ((x, k), &v) in line.indexed_iter() {
-            prefix[[x + 1, k]] = prefix[[x, k]] + v as f64;
+    let mut prefix = vec![[0f64; 3]; w + 1];
+    for line in img.chunks_exact(3 * w) {
+        for (x, p) in line.chunks_exact(3).enumerate() {
+            for k in 0..3 {
+                prefix[x + 1][k] = prefix[x][k] + p[k] as f64;
+            }
         }
         for x in 0..w {
             let (lo, hi) = window(x, w, r);
             let n = (hi - lo) as f64;
-            rows.extend((0..3).map(|k| ((prefix[[hi, k]] - prefix[[lo, k]]) / n) as f32));
+            rows.extend((0..3).map(|k| ((prefix[hi][k] - prefix[lo][k]) / n) as f32));
         }
     }
     Ok(Array3::from_shape_vec((h, w, 3), rows).expect("one mean per pixel and channel"))

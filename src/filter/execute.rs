@@ -388,7 +388,7 @@ fn denoise_tile(
         range_opening: info.range_opening,
         coarse_clamp: info.coarse_clamp,
     };
-    let refs: Vec<&[f32]> = filters.iter().map(Vec::as_slice).collect();
+    let refs = filters.levels()?;
     let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));
     let aux = reconstruct::RangeAux {
         planes: Packed::plane(&p.aux),
