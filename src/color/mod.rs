@@ -134,24 +134,53 @@ pub const AUTO_EXPOSURE_KEY: f64 = 0.18;
 /// maps to mid-grey. An image with no such pixel gets 1.0. The result is computed from
 /// the whole image once, before tiling, so it is the same for every tile.
 pub fn auto_input_scale(pixels: impl Iterator<Item = [f32; 3]>) -> f32 {
-    let (mut sum, mut n) = (0.0f64, 0u64);
-    for p in pixels {
-        let c = sanitize_rgb(p);
-        let y: f64 = c
-            .iter()
-            .zip(LUMA_WEIGHTS)
-            .map(|(&v, w)| v as f64 * w as f64)
-            .sum();
-        if y > 1e-8 {
-            sum += y.ln();
-            n += 1;
+    LogLuminance::of(pixels).input_scale()
+}
+
+/// The sum of ln Y over the pixels [`auto_input_scale`] counts, and their number: parts of
+/// an image summed apart (in parallel) and merged in a fixed order give one scale whatever
+/// the thread count.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LogLuminance {
+    sum: f64,
+    n: u64,
+}
+
+impl LogLuminance {
+    /// The sum over `pixels`.
+    pub fn of(pixels: impl Iterator<Item = [f32; 3]>) -> Self {
+        let mut acc = Self::default();
+        for p in pixels {
+            let c = sanitize_rgb(p);
+            let y: f64 = c
+                .iter()
+                .zip(LUMA_WEIGHTS)
+                .map(|(&v, w)| v as f64 * w as f64)
+                .sum();
+            if y > 1e-8 {
+                acc.sum += y.ln();
+                acc.n += 1;
+            }
+        }
+        acc
+    }
+
+    /// Both parts' pixels together.
+    pub fn merge(self, other: Self) -> Self {
+        LogLuminance {
+            sum: self.sum + other.sum,
+            n: self.n + other.n,
         }
     }
-    if n == 0 {
-        return 1.0;
+
+    /// The input scale of [`auto_input_scale`].
+    pub fn input_scale(self) -> f32 {
+        if self.n == 0 {
+            return 1.0;
+        }
+        let scale = AUTO_EXPOSURE_KEY / (self.sum / self.n as f64).exp();
+        (scale as f32).clamp(1e-20, 1e20)
     }
-    let scale = AUTO_EXPOSURE_KEY / (sum / n as f64).exp();
-    (scale as f32).clamp(1e-20, 1e20)
 }
 
 #[cfg(test)]

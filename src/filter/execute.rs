@@ -69,7 +69,18 @@ impl Source {
         let (w, h) = (self.img.layout.width, self.img.layout.height);
         (0..h).flat_map(move |y| (0..w).map(move |x| self.px(x, y)))
     }
+
+    /// The pixels of band `b`'s rows ([`STAT_ROWS`] of them, fewer at the bottom).
+    fn band(&self, b: usize) -> impl Iterator<Item = [f32; 3]> + '_ {
+        let (w, h) = (self.img.layout.width, self.img.layout.height);
+        let rows = b * STAT_ROWS..((b + 1) * STAT_ROWS).min(h);
+        rows.flat_map(move |y| (0..w).map(move |x| self.px(x, y)))
+    }
 }
+
+/// Rows per band of the image statistics: bands are summed in parallel and merged in
+/// order, so the input scale does not depend on the thread count.
+const STAT_ROWS: usize = 64;
 
 /// The inputs one execution reads: colour and the aux buffers the caller gave.
 struct Sources {
@@ -197,19 +208,47 @@ fn snapshot(images: &[Option<RawImage>; 6]) -> Result<Sources, Error> {
     })
 }
 
-/// Stage 3: exposure (the caller's input scale, or automatic for HDR) and the depth scale.
-fn image_statistics(job: &Job<'_>, src: &Sources, info: &ModelInfo) -> Result<Statistics, Error> {
+/// Stage 3: exposure (the caller's input scale, or automatic for HDR) and the depth scale,
+/// band by band on the pool (about 0.1 s of one thread at 1080p otherwise).
+fn image_statistics(
+    job: &Job<'_>,
+    src: &Sources,
+    info: &ModelInfo,
+    pool: &rayon::ThreadPool,
+) -> Result<Statistics, Error> {
+    let auto = job.hdr && job.input_scale.is_none();
+    let bands = src.color.img.layout.height.div_ceil(STAT_ROWS);
+    let parts: Vec<_> = pool.install(|| {
+        (0..bands)
+            .into_par_iter()
+            .map(|b| {
+                let log = auto.then(|| color::LogLuminance::of(src.color.band(b)));
+                let depth = src
+                    .depth
+                    .as_ref()
+                    .and_then(|d| features::depth_scale(d.band(b).map(|p| p[0])));
+                (log.unwrap_or_default(), depth)
+            })
+            .collect()
+    });
+    let (log, depth_scale) = parts.into_iter().fold(
+        (color::LogLuminance::default(), None::<f32>),
+        |(log, depth), (l, d)| {
+            let depth = match (depth, d) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                (a, b) => a.or(b),
+            };
+            (log.merge(l), depth)
+        },
+    );
     let input_scale = match (job.hdr, job.input_scale) {
         (_, Some(s)) => s,
         (false, None) => 1.0,
-        (true, None) => color::auto_input_scale(src.color.pixels()),
+        (true, None) => log.input_scale(),
     };
     Ok(Statistics {
         exposure: Exposure::new(input_scale, info.pq_nits_per_unit)?,
-        depth_scale: src
-            .depth
-            .as_ref()
-            .and_then(|d| features::depth_scale(d.pixels().map(|p| p[0]))),
+        depth_scale,
     })
 }
 
@@ -424,7 +463,7 @@ pub(super) fn run(
     images[ImageName::Spectral as usize] = None;
     let (w, h) = validate(&images)?;
     let src = snapshot(&images)?;
-    let stats = image_statistics(&job, &src, info)?;
+    let stats = image_statistics(&job, &src, info, pool)?;
     let threads = pool.current_num_threads().max(1);
     let (plan, estimated_peak) = plan(&job, (w, h), src.snapshot_bytes, threads)?;
     let (tw, th) = plan.window;
