@@ -92,17 +92,39 @@ pub struct Encoded {
 /// assert!((back[0] - 0.8).abs() < 1e-5 && (back[2] - 0.1).abs() < 1e-6);
 /// ```
 pub fn encode(rgb: [f32; 3], exposure: Exposure) -> Encoded {
+    let (y, excess) = normalised(rgb, exposure);
+    finish(y.map(pq::encode), excess)
+}
+
+/// [`encode`] of a row of pixels, to the bit the same: the PQ curve, most of the time,
+/// runs over the whole row at once ([`pq::encode_all`]).
+pub fn encode_row(rgb: &[[f32; 3]], exposure: Exposure) -> Vec<Encoded> {
+    let (mut ys, excess): (Vec<[f64; 3]>, Vec<f64>) =
+        rgb.iter().map(|&c| normalised(c, exposure)).unzip();
+    pq::encode_all(ys.as_flattened_mut());
+    ys.into_iter()
+        .zip(excess)
+        .map(|(pq, e)| finish(pq, e))
+        .collect()
+}
+
+/// The pixel's normalised luminances y = L / 10000 cd/m2 before PQ, and its excess: a
+/// pixel brighter than PQ's range is scaled into it.
+fn normalised(rgb: [f32; 3], exposure: Exposure) -> ([f64; 3], f64) {
     let k = exposure.y_per_unit();
     let y = sanitize_rgb(rgb).map(|c| c as f64 * k);
     let m = y[0].max(y[1]).max(y[2]);
-    let (y, excess) = if m > 1.0 {
+    if m > 1.0 {
         (y.map(|c| c / m), m)
     } else {
         (y, 1.0)
-    };
-    let pq = y.map(|c| pq::encode(c) as f32);
+    }
+}
+
+/// HSV of the PQ code values, and the excess in f32.
+fn finish(pq: [f64; 3], excess: f64) -> Encoded {
     Encoded {
-        hsv: rgb_to_hsv(pq),
+        hsv: rgb_to_hsv(pq.map(|v| v as f32)),
         excess: excess.min(f32::MAX as f64) as f32,
     }
 }

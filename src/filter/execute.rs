@@ -336,12 +336,14 @@ fn pack_tile(
             (buffer, *channels, first - channels)
         })
         .collect();
+    let mut row = Vec::with_capacity(win.w);
     for wy in 0..win.h {
         let y = reflect(win.y + wy, h);
-        for wx in 0..win.w {
+        row.clear();
+        row.extend((0..win.w).map(|wx| radiance(src.color.px(reflect(win.x + wx, w), y), hdr)));
+        let encoded = color::encode_row(&row, stats.exposure);
+        for (wx, (&c, e)) in row.iter().zip(encoded).enumerate() {
             let x = reflect(win.x + wx, w);
-            let c = radiance(src.color.px(x, y), hdr);
-            let e = color::encode(c, stats.exposure);
             p.chroma[[0, wy, wx]] = e.hsv[0];
             p.chroma[[1, wy, wx]] = e.hsv[1];
             p.luma[[0, wy, wx]] = e.hsv[2];
