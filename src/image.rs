@@ -200,12 +200,18 @@ impl Layout {
 /// duration of the call, and (x, y) must be inside the image.
 #[inline]
 pub unsafe fn read3(base: *const u8, layout: &Layout, x: usize, y: usize) -> [f32; 3] {
-    let n = layout.format.channels().min(3);
+    let format = layout.format;
+    let n = format.channels().min(3);
+    // The pixel's position once, its channels from there: this runs for every pixel of
+    // every input buffer.
+    // SAFETY: (x, y) lies inside the validated layout (this function's contract).
+    let pixel = unsafe { base.add(layout.at(x, y, 0)) };
+    let step = format.channel_bytes();
     let mut out = [0.0; 3];
     for (c, o) in out.iter_mut().enumerate().take(n) {
-        // SAFETY: (x, y, c) lies inside the validated layout, so the channel's bytes are
-        // inside the caller's buffer (this function's contract); reads may be unaligned.
-        *o = unsafe { read_channel(base.add(layout.at(x, y, c)), layout.format) };
+        // SAFETY: channel c < the format's channels of a pixel inside the layout, so its
+        // bytes are inside the caller's buffer; reads may be unaligned.
+        *o = unsafe { read_channel(pixel.add(c * step), format) };
     }
     out
 }
