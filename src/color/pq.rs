@@ -174,6 +174,17 @@ mod tests {
         }
         let mut all = ys.clone();
         encode_all(&mut all);
+        // The dispatch takes the widest build; the AVX2 one must agree too.
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let mut avx2 = ys.clone();
+            // SAFETY: the CPU has AVX2.
+            unsafe { encode_all_avx2(&mut avx2) };
+            assert!(avx2
+                .iter()
+                .zip(&all)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
         for (&y, &batch) in ys.iter().zip(&all) {
             let (got, want) = (encode(y), libm(y));
             assert!((got - want).abs() <= 5e-14 * want, "y={y}: {got} vs {want}");
