@@ -465,9 +465,16 @@ pub(super) fn run(
     images[ImageName::Spectral as usize] = None;
     let (w, h) = validate(&images)?;
     let src = snapshot(&images)?;
-    let stats = image_statistics(&job, &src, info, pool)?;
     let threads = pool.current_num_threads().max(1);
-    let (plan, estimated_peak) = plan(&job, (w, h), src.snapshot_bytes, threads)?;
+    // The tile plan's first call builds two measuring plans (Model::memory_estimate): they
+    // and the image statistics share the pool's threads.
+    let (stats, tile_plan) = pool.install(|| {
+        rayon::join(
+            || image_statistics(&job, &src, info, pool),
+            || plan(&job, (w, h), src.snapshot_bytes, threads),
+        )
+    });
+    let (stats, (plan, estimated_peak)) = (stats?, tile_plan?);
     let (tw, th) = plan.window;
     if job.verbose > 0 {
         eprintln!(
