@@ -79,34 +79,19 @@ fn block_sums(
     let gw = w.div_ceil(block);
     let mut sums = Array3::zeros((h.div_ceil(block), gw, 3));
     let flat = sums.as_slice_mut().expect("a fresh array is contiguous");
-    let (mut x, mut y) = (0, 0);
+    // Position as counters, not i % w and divisions: this runs per pixel, three times a
+    // denoise. `at` is the current block's first sum, `left` the pixels left in it.
+    let (mut x, mut y, mut at, mut left) = (0, 0, 0, block);
     for p in pixels {
-        let s = &mut flat[((y / block) * gw + x / block) * 3..][..3];
-        for (a, v) in s.iter_mut().zip(p) {
+        for (a, v) in flat[at..at + 3].iter_mut().zip(p) {
             *a += v as f64;
         }
-        x += 1;
+        (x, left) = (x + 1, left - 1);
         if x == w {
-            (x, y) = (0, y + 1);
-        }
-    }
-    sums
-}
-
-/// [`block_sums`] of interleaved RGB rows: each block's sum adds its pixels in the same
-/// order, so the result is the same to the bit.
-fn block_sums_of(out: &[f32], (w, h): (usize, usize), block: usize) -> Array3<f64> {
-    let gw = w.div_ceil(block);
-    let mut sums = Array3::zeros((h.div_ceil(block), gw, 3));
-    let flat = sums.as_slice_mut().expect("a fresh array is contiguous");
-    for (y, row) in out.chunks_exact(3 * w).enumerate() {
-        let blocks = &mut flat[(y / block) * gw * 3..][..gw * 3];
-        for (s, part) in blocks.chunks_exact_mut(3).zip(row.chunks(3 * block)) {
-            for p in part.chunks_exact(3) {
-                s[0] += p[0] as f64;
-                s[1] += p[1] as f64;
-                s[2] += p[2] as f64;
-            }
+            (x, y, left) = (0, y + 1, block);
+            at = (y / block) * gw * 3;
+        } else if left == 0 {
+            (at, left) = (at + 3, block);
         }
     }
     sums
@@ -161,7 +146,8 @@ fn rescale(
     max: f32,
 ) -> Result<(), TryReserveError> {
     assert!(clamp >= 1.0);
-    let output_sums = block_sums_of(out, (w, h), block);
+    let pixels = out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]);
+    let output_sums = block_sums(pixels, (w, h), block);
     let ratio = Zip::from(input_sums)
         .and(&output_sums)
         .map_collect(|&i, &o| (if o > 0.0 { i / o } else { 1.0 }).clamp(1.0 / clamp, clamp));

@@ -66,14 +66,17 @@ impl Source {
 
     /// Every pixel, row by row.
     fn pixels(&self) -> impl Iterator<Item = [f32; 3]> + '_ {
-        let (w, h) = (self.img.layout.width, self.img.layout.height);
-        (0..h).flat_map(move |y| (0..w).map(move |x| self.px(x, y)))
+        self.rows(0..self.img.layout.height)
     }
 
     /// The pixels of band `b`'s rows ([`STAT_ROWS`] of them, fewer at the bottom).
     fn band(&self, b: usize) -> impl Iterator<Item = [f32; 3]> + '_ {
-        let (w, h) = (self.img.layout.width, self.img.layout.height);
-        let rows = b * STAT_ROWS..((b + 1) * STAT_ROWS).min(h);
+        self.rows(b * STAT_ROWS..((b + 1) * STAT_ROWS).min(self.img.layout.height))
+    }
+
+    /// The pixels of `rows`, row by row.
+    fn rows(&self, rows: std::ops::Range<usize>) -> impl Iterator<Item = [f32; 3]> + '_ {
+        let w = self.img.layout.width;
         rows.flat_map(move |y| (0..w).map(move |x| self.px(x, y)))
     }
 }
@@ -231,16 +234,11 @@ fn image_statistics(
             })
             .collect()
     });
-    let (log, depth_scale) = parts.into_iter().fold(
-        (color::LogLuminance::default(), None::<f32>),
-        |(log, depth), (l, d)| {
-            let depth = match (depth, d) {
-                (Some(a), Some(b)) => Some(a.max(b)),
-                (a, b) => a.or(b),
-            };
-            (log.merge(l), depth)
-        },
-    );
+    let log = parts
+        .iter()
+        .fold(color::LogLuminance::default(), |log, p| log.merge(p.0));
+    // The bands' scales are depths too: the image's is the largest of them.
+    let depth_scale = features::depth_scale(parts.iter().filter_map(|p| p.1));
     let input_scale = match (job.hdr, job.input_scale) {
         (_, Some(s)) => s,
         (false, None) => 1.0,
