@@ -287,6 +287,20 @@ def test_ship_writes_the_card_from_the_checkpoint(tiny_run, reported, tmp_path, 
     assert sorted(os.listdir(golden / "temc2-fast")) == ["aux.npy", "chroma.npy", "filters0.npy", "luma.npy"]
 
 
+def test_ship_only_exports_the_one_candidate(tiny_run, reported, tmp_path, monkeypatch):
+    # scripts/candidate-report ships one file into a folder of its own; a run that is
+    # absent there (balanced's here) must not be asked for.
+    monkeypatch.setattr(ship, "SHIPPED", {"temc2-fast": ("tiny", "TEMC_QUALITY_FAST"),
+                                          "temc2-balanced": ("absent", "TEMC_QUALITY_BALANCED")})
+    onnx_dir, golden = tmp_path / "onnx", tmp_path / "golden"
+    ship.main(["--runs", tiny_run, "--onnx", str(onnx_dir), "--golden", str(golden),
+               "--data", reported.data, "--only", "temc2-fast"])
+    assert sorted(os.listdir(onnx_dir)) == ["temc2-fast.md", "temc2-fast.onnx"]
+    with pytest.raises(SystemExit, match="absent/checkpoint.pt: not trained yet"):
+        ship.main(["--runs", tiny_run, "--onnx", str(onnx_dir), "--golden", str(golden),
+                   "--only", "temc2-balanced"])
+
+
 def test_card_reports_threads_gpu_time_and_old_recipes():
     ck = {"train_seconds": 600.0, "gpu_seconds": 1800.0, "hparams": {"threads": 2}}
     assert ship.trained_for(ck) == "10 CPU minutes on 2 threads of this project's 2-core machine and 30 GPU minutes"

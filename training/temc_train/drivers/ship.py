@@ -371,11 +371,14 @@ def main(argv=None):
     ap.add_argument("--golden", default="../tests/data/golden/shipped")
     ap.add_argument("--measurements", help="the accuracy report's measurements.csv")
     ap.add_argument("--data", help="the data set folder (for its settings in the cards)")
+    ap.add_argument("--only", choices=sorted(SHIPPED), help="ship this file alone (a candidate "
+                    "measured before it replaces the shipped one: scripts/candidate-report)")
     a = ap.parse_args(argv)
     torch.set_num_threads(2)
     meas, data = read_measurements(a.measurements), data_facts(a.data)
     for file, (run_name, mode) in SHIPPED.items():
-        ship_one(a, file, run_name, mode, meas, data)
+        if a.only in (None, file):
+            ship_one(a, file, run_name, mode, meas, data)
 
 
 if __name__ == "__main__":
