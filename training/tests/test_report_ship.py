@@ -312,6 +312,17 @@ def test_card_reports_threads_gpu_time_and_old_recipes():
     assert not ship.still_rendering({"train_scenes": "an unrecorded number of"}, {"train": 7})
 
 
+def test_card_names_the_learning_rate_schedule():
+    assert ship.lr_schedule({"lr_half_life": 2}) == ", halved every 2 h of training (train.learning_rate)"
+    assert ship.lr_schedule({"lr_half_life": 0}) == ""
+    cpu = {"schedule": "onecycle", "batch": 4, "processes": 1, "lr_batch": 4, "cycle_hours": 1.25}
+    assert ship.lr_schedule(cpu) == (", its last session one cycle of 1.25 h of training: up from 1/25 "
+                                     "of it, then down along a cosine to 1/1000 (train.learning_rate)")
+    gpu = dict(cpu, batch=256, processes=2, cycle_hours=0)
+    assert ship.lr_schedule(gpu) == (" at batch 4, its peak scaled by the square root of batch 512 over "
+                                     "that, one cycle a session (train.learning_rate)")
+
+
 def test_card_says_how_the_training_set_grew_and_what_the_last_session_had():
     grew = ship.scenes_seen({"train_scenes": 40, "first_train_scenes": 3}, {"train": 40})
     assert grew == "the run's training set grew as the data set rendered, from 3 scenes at its first start to 40"

@@ -133,6 +133,20 @@ def trained_for(ck) -> str:
     return text
 
 
+def lr_schedule(hp) -> str:
+    """The card's account of the last session's learning-rate schedule (train.learning_rate)."""
+    if hp.get("schedule") == "onecycle":
+        batch = hp["batch"] * hp.get("processes", 1)
+        scaled = (f" at batch {hp['lr_batch']}, its peak scaled by the square root of batch "
+                  f"{batch} over that" if hp.get("lr_batch") and hp["lr_batch"] != batch else "")
+        return scaled + (f", its last session one cycle of {hp['cycle_hours']:g} h of training: up from "
+                "1/25 of it, then down along a cosine to 1/1000 (train.learning_rate)"
+                if hp.get("cycle_hours") else ", one cycle a session (train.learning_rate)")
+    if hp.get("lr_half_life"):
+        return f", halved every {hp['lr_half_life']:g} h of training (train.learning_rate)"
+    return ""
+
+
 def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap):
     """The model card. `data`: {"text": the data set's settings, "train": its training
     scenes or None}."""
@@ -169,8 +183,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"| training time | {ck['train_seconds']:.0f} CPU seconds in training steps, {hp['threads']} "
         f"thread(s) ({hours:.2f} h); validation excluded |",
         f"| optimiser | Adam, learning rate {hp['lr']:g} (the paper's 1e-4 suits its far longer run)"
-        + (f", halved every {hp['lr_half_life']:g} h of training (train.learning_rate)"
-           if hp.get("lr_half_life") else "") + " |",
+        + lr_schedule(hp) + " |",
         (f"| loss | relative MSE (loss.noise2noise_loss) against "
          + (f"the reference render's {hp['target_spp']}-spp prefix (Noise2Noise) |" if hp["target_spp"]
             else "the clean references |")
