@@ -348,6 +348,17 @@ def test_card_names_a_test_split_rendered_alone(tmp_path):
     assert facts["train"] == 2 and facts["text"].startswith("2 training, 0 validation, 3 test")
 
 
+def test_card_names_both_sets_when_the_last_session_trained_elsewhere():
+    here = {"text": "its test split, 140 scenes", "train": None, "name": "spectral-v2"}
+    ck = {"dataset": "cpu-l3-scenes", "train_scenes": 779, "session_scenes": 107}
+    assert ship.data_row(ck, here) == (
+        "| data | last trained on cpu-l3-scenes (rendered on its training machine, not kept here); "
+        "the run trained on 779 training scenes; its last session trained on the 107 rendered on "
+        "its machine; measured on spectral-v2: its test split, 140 scenes |")
+    same = dict(ck, dataset="spectral-v2")
+    assert ship.data_row(same, here).startswith("| data | spectral-v2, as it stands now: its test split")
+
+
 def test_labels_name_the_levels_of_a_pyramid():
     assert models.label("temc2", 0.125) == "TEMC-2 w0.125"
     assert models.label("temc2", "0.125", "3") == "TEMC-2 w0.125, 3 levels"

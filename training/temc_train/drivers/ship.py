@@ -50,8 +50,8 @@ SHIPPED = {
 # "Aux-guided opening": balanced's RelMSE on our test split 0.90-0.94x the plain opening's).
 SHIP_RECON = {"fixed_range": True, "range_opening": "aux"}
 # And per model: high's coarse levels capped (a firefly they spread no longer raises a block)
-# and composed bilinearly (no 2x2 grid on flat walls), both fixed functions it did not train
-# with (docs/reconstruction.md, "High: three levels, fenced").
+# and composed bilinearly (no 2x2 grid on flat walls), both fixed functions, added at shipping
+# and trained with since 2026-12-05 (docs/reconstruction.md, "High: three levels, fenced").
 FILE_RECON = {"temc2-high": {"coarse_clamp": True, "upsample": "bilinear"}}
 # Tile overlaps the seam test raised above the measured reach's (file -> pixels, why): the
 # reach is measured on a mild image, and seams show on heavy-tailed noise first.
@@ -65,13 +65,23 @@ MIN_OVERLAP = {
 # What a card must say beyond its numbers.
 NOTES = {
     "temc2-high": "Grown from balanced: its first 8 CPU-hours (28,800 s, 39,512 steps) are the "
-                  "balanced run's, on spectral-v2; the hours as 3 levels trained on 36 scenes of "
-                  "every scene family (`temc-render dataset --families all`, rendered on that "
-                  "session's machine: the `scenes` of the data row), 2.35 h at lr 1e-4 and then "
-                  "0.6 h at 3e-4 with the finest blends opened. The coarse clamp and the bilinear "
-                  "composition were added at shipping (it trained with neither). The Cycles "
-                  "family, never trained on, is its verdict (docs/cycles-report.md); it continues "
-                  "on GPUs (scripts/gpu-session).",
+                  "balanced run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours on 36 "
+                  "scenes of every scene family (`temc-render dataset --families all`, rendered on "
+                  "that session's machine), 2.35 h at lr 1e-4 and then 0.6 h at 3e-4 with the finest "
+                  "blends opened, without the coarse clamp and the bilinear composition (added at "
+                  "shipping); then, on 2026-12-05, 1.1 CPU-hours with both, on 107 new scenes that "
+                  "scripts/train-gpu's renderer made beside it (the `cpu-l3-scenes` of the data row: "
+                  "every family, noisy from 1 spp, 30 % sampled as weaker renderers sample, "
+                  "`--weak-share 0.3`), one learning-rate cycle peaking at 3e-4. The Cycles family, "
+                  "never trained on, is its verdict (docs/cycles-report.md); it continues on GPUs "
+                  "(scripts/gpu-session).",
+    "temc2-balanced": "Its first 8 CPU-hours (28,800 s, 39,512 steps) trained on spectral-v2; on "
+                      "2026-12-05 it trained 0.8 CPU-hours more on the 107 scenes high's run "
+                      "rendered then (the `cpu-l3-scenes` of the data row: every scene family, noisy "
+                      "from 1 spp, 30 % sampled as weaker renderers sample), with the fixed range "
+                      "term and its aux-guided opening it ships with, one learning-rate cycle "
+                      "peaking at 3e-4. The Cycles family, never trained on, is its verdict "
+                      "(docs/cycles-report.md).",
 }
 # The cumulative training budgets of scripts/train-all (issue 15).
 BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8}
@@ -147,6 +157,17 @@ def lr_schedule(hp) -> str:
     return ""
 
 
+def data_row(ck, data) -> str:
+    """The card's data row. A run whose last session trained on another set than the one
+    measured here (scenes rendered on a training machine and not kept) names both."""
+    name = data.get("name")
+    if name and ck["dataset"] != name:
+        return (f"| data | last trained on {ck['dataset']} (rendered on its training machine, "
+                f"not kept here); {scenes_seen(ck, {'train': None})}; measured on {name}: "
+                f"{data['text']} |")
+    return f"| data | {ck['dataset']}, as it stands now: {data['text']}; {scenes_seen(ck, data)} |"
+
+
 def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap):
     """The model card. `data`: {"text": the data set's settings, "train": its training
     scenes or None}."""
@@ -175,7 +196,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         f"| parameters | {ck['params'][0]:,} convolution + {ck['params'][1]:,} batch-norm |",
         f"| file size | {size / 2**20:.1f} MiB |",
         f"| training run | training/runs/{run_name} |",
-        f"| data | {ck['dataset']}, as it stands now: {data['text']}; {scenes_seen(ck, data)} |",
+        data_row(ck, data),
         f"| steps | {ck['train_steps']:,} (batch {hp['batch']}, random {hp['crop']}x{hp['crop']} crops, "
         "flips, rotations, aux dropout)"
         + (f"; {ck['skipped_steps']:,} skipped for a non-finite gradient (train.finite_step)"
@@ -221,7 +242,8 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
               else " (added at shipping), " if "upsample" in FILE_RECON.get(file, {}) else ", ")
            if recon.get("upsample") == "bilinear" else "")
         + ("the coarse clamp (a coarse level's correction at most doubles a finer value)"
-           + (" (added at shipping), " if "coarse_clamp" in FILE_RECON.get(file, {}) else ", ")
+           + (f" from step {ck['coarse_clamp_from_step']:,}, " if ck.get("coarse_clamp_from_step")
+              else " (added at shipping), " if "coarse_clamp" in FILE_RECON.get(file, {}) else ", ")
            if recon.get("coarse_clamp") else "")
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
@@ -291,6 +313,7 @@ def data_facts(root) -> dict:
     """The data set's settings for the cards: {"text", "train": training scenes or None}."""
     if not (root and os.path.exists(os.path.join(root, "manifest.json"))):
         return {"text": "temc-render dataset", "train": None}
+    name = os.path.basename(os.path.normpath(root))
     with open(os.path.join(root, "manifest.json")) as f:
         m = json.load(f)
     n = {s: sum(r["split"] == s for r in m["scenes"]) for s in ("train", "val", "test")}
@@ -301,9 +324,10 @@ def data_facts(root) -> dict:
         # `temc-render dataset --split test`: the scenes that measure a model, not those it
         # trained on, so the set's size is not known here.
         return {"text": f"its test split, {n['test']} scenes rendered for measuring "
-                        f"(`temc-render dataset --split test`), {settings}", "train": None}
+                        f"(`temc-render dataset --split test`), {settings}", "train": None,
+                "name": name}
     return {"text": f"{n['train']} training, {n['val']} validation, {n['test']} test scenes, "
-                    f"{settings}", "train": n["train"]}
+                    f"{settings}", "train": n["train"], "name": name}
 
 
 def checkpoint_facts(ck, model, data_root) -> dict:
@@ -325,7 +349,8 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "dark_from_step": st.get("dark_from_step"),
             "fixed_range_from_step": st.get("fixed_range_from_step"),
             "range_opening_from_step": st.get("range_opening_from_step"),
-            "upsample_from_step": st.get("upsample_from_step"), "blend_reset": st.get("blend_reset"),
+            "upsample_from_step": st.get("upsample_from_step"),
+            "coarse_clamp_from_step": st.get("coarse_clamp_from_step"), "blend_reset": st.get("blend_reset"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}
 
