@@ -352,7 +352,7 @@ def test_card_names_both_sets_when_the_last_session_trained_elsewhere():
     here = {"text": "its test split, 140 scenes", "train": None, "name": "spectral-v2"}
     ck = {"dataset": "cpu-l3-scenes", "train_scenes": 779, "session_scenes": 107}
     assert ship.data_row(ck, here) == (
-        "| data | last trained on cpu-l3-scenes (rendered on its training machine, not kept here); "
+        "| data | last trained on cpu-l3-scenes (rendered on its training machine, not in git); "
         "the run trained on 779 training scenes; its last session trained on the 107 rendered on "
         "its machine; measured on spectral-v2: its test split, 140 scenes |")
     same = dict(ck, dataset="spectral-v2")

@@ -22,6 +22,7 @@ from .. import receptive
 from ..checkpoint import Checkpoint
 from ..onnx_export import INPUTS, example_inputs, export, metadata, output_names, recon_of, run_ort
 from ..models import ARCH_NAMES, count_params, label
+from .train import SWITCHABLE
 
 # file (under onnx/) -> (run folder, quality mode or None for a baseline)
 SHIPPED = {
@@ -163,9 +164,20 @@ def data_row(ck, data) -> str:
     name = data.get("name")
     if name and ck["dataset"] != name:
         return (f"| data | last trained on {ck['dataset']} (rendered on its training machine, "
-                f"not kept here); {scenes_seen(ck, {'train': None})}; measured on {name}: "
+                f"not in git); {scenes_seen(ck, {'train': None})}; measured on {name}: "
                 f"{data['text']} |")
     return f"| data | {ck['dataset']}, as it stands now: {data['text']}; {scenes_seen(ck, data)} |"
+
+
+def since(ck, key, shipped=" (added at shipping), ") -> str:
+    """When a reconstruction setting joined training (its `{key}_from_step`), else `shipped`."""
+    step = ck.get(f"{key}_from_step")
+    return f" from step {step:,}, " if step else shipped
+
+
+def shipped_with(file, key) -> str:
+    """`since`'s text for a setting FILE_RECON adds to one file at shipping."""
+    return " (added at shipping), " if key in FILE_RECON.get(file, {}) else ", "
 
 
 def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap):
@@ -230,20 +242,16 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
                                             if ck.get("guide_from_step") else "") + ", ")
            if recon.get("guide") else "")
         + ("the fixed range term (lamps kept out of dark neighbours) on"
-           + (f" from step {ck['fixed_range_from_step']:,}, " if ck.get("fixed_range_from_step")
-              else " (added at shipping; not seen in training), ")
+           + since(ck, "fixed_range", " (added at shipping; not seen in training), ")
            + ("its opening guided by the aux planes (small lamps the aux outlines kept too)"
-              + (f" from step {ck['range_opening_from_step']:,}, " if ck.get("range_opening_from_step")
-                 else " (added at shipping), ")
+              + since(ck, "range_opening")
               if recon.get("range_opening") == "aux" else "")
            if recon.get("fixed_range") else "")
         + ("bilinear composition of the levels"
-           + (f" from step {ck['upsample_from_step']:,}, " if ck.get("upsample_from_step")
-              else " (added at shipping), " if "upsample" in FILE_RECON.get(file, {}) else ", ")
+           + since(ck, "upsample", shipped_with(file, "upsample"))
            if recon.get("upsample") == "bilinear" else "")
         + ("the coarse clamp (a coarse level's correction at most doubles a finer value)"
-           + (f" from step {ck['coarse_clamp_from_step']:,}, " if ck.get("coarse_clamp_from_step")
-              else " (added at shipping), " if "coarse_clamp" in FILE_RECON.get(file, {}) else ", ")
+           + since(ck, "coarse_clamp", shipped_with(file, "coarse_clamp"))
            if recon.get("coarse_clamp") else "")
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
@@ -347,10 +355,9 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "hparams": ck.recipe(),
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
             "dark_from_step": st.get("dark_from_step"),
-            "fixed_range_from_step": st.get("fixed_range_from_step"),
-            "range_opening_from_step": st.get("range_opening_from_step"),
-            "upsample_from_step": st.get("upsample_from_step"),
-            "coarse_clamp_from_step": st.get("coarse_clamp_from_step"), "blend_reset": st.get("blend_reset"),
+            # When each switchable reconstruction setting joined training (train.resume_model).
+            **{f"{k}_from_step": st.get(f"{k}_from_step") for k in SWITCHABLE},
+            "blend_reset": st.get("blend_reset"),
             "levels_from": st.get("levels_from"), "skipped_steps": st.get("skipped_steps", 0),
             "throughput": st.get("throughput")}
 
