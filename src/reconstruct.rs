@@ -207,15 +207,14 @@ pub fn reconstruct(
             opened = opened.map(|o| downsample(&o, 1, hl, wl));
             (hl, wl) = (hl / 2, wl / 2);
         }
-        outs.push(filter_level(
-            &x,
+        let level = Level {
+            x: &x,
             f,
-            p,
-            opened.as_deref(),
-            hl,
-            wl,
-            &mut scratch,
-        ));
+            opened: opened.as_deref(),
+            h: hl,
+            w: wl,
+        };
+        outs.push(filter_level(&level, p, &mut scratch));
     }
     let (mut cy, mut cc) = outs.pop().expect("levels >= 1");
     let k2 = p.kernel * p.kernel;
@@ -571,29 +570,33 @@ fn span(
     (x0 < x1).then_some((x0 as usize, x1 as usize))
 }
 
+/// One pyramid level's inputs to [`filter_level`].
+struct Level<'a> {
+    /// The level's radiance [3, H, W].
+    x: &'a [f32],
+    /// The network's logits for the level.
+    f: &'a [f32],
+    /// The opened luminance the fixed range term reads, where aux is given.
+    opened: Option<&'a [f32]>,
+    h: usize,
+    w: usize,
+}
+
 /// Filters one level: per pixel, the luma kernel on the level's luminance and the chroma
 /// kernel on its three channels. Returns (fy [H, W], fc [3, H, W]). Runs the widest build
 /// the CPU has (AVX-512, AVX2, else the baseline SSE2 one); all give the same bits.
-fn filter_level(
-    x: &[f32],
-    f: &[f32],
-    p: &Params,
-    opened: Option<&[f32]>,
-    h: usize,
-    w: usize,
-    s: &mut Scratch,
-) -> (Vec<f32>, Vec<f32>) {
+fn filter_level(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f32>) {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU has AVX-512F. No FMA: bit-identical to the baseline's results.
-        return unsafe { filter_level_avx512(x, f, p, opened, h, w, s) };
+        return unsafe { filter_level_avx512(lv, p, s) };
     }
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2. No FMA: the results are bit-identical to the baseline's.
-        return unsafe { filter_level_avx2(x, f, p, opened, h, w, s) };
+        return unsafe { filter_level_avx2(lv, p, s) };
     }
-    filter_level_any(x, f, p, opened, h, w, s)
+    filter_level_any(lv, p, s)
 }
 
 /// Declares `$name`: [`filter_level_any`] compiled with the target features `$features`.
@@ -602,16 +605,8 @@ macro_rules! filter_level_for {
         $(#[$doc])*
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        fn $name(
-            x: &[f32],
-            f: &[f32],
-            p: &Params,
-            opened: Option<&[f32]>,
-            h: usize,
-            w: usize,
-            s: &mut Scratch,
-        ) -> (Vec<f32>, Vec<f32>) {
-            filter_level_any(x, f, p, opened, h, w, s)
+        fn $name(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f32>) {
+            filter_level_any(lv, p, s)
         }
     };
 }
@@ -629,15 +624,8 @@ filter_level_for!(
 
 /// The body of [`filter_level`], inlined into each instruction-set version.
 #[inline(always)]
-fn filter_level_any(
-    x: &[f32],
-    f: &[f32],
-    p: &Params,
-    opened: Option<&[f32]>,
-    h: usize,
-    w: usize,
-    s: &mut Scratch,
-) -> (Vec<f32>, Vec<f32>) {
+fn filter_level_any(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f32>) {
+    let &Level { x, f, opened, h, w } = lv;
     let n = h * w;
     let k2 = p.kernel * p.kernel;
     let guide = |c: usize| p.guide.then(|| &f[(2 * k2 + 2 + c) * n..][..n]);
@@ -1289,13 +1277,20 @@ mod tests {
             let o = fixed_range.then_some(opened.as_slice());
             let f = rng.vec(channels(k, guide) * h * w, |r| r.normal(3.0));
             let mut s = Scratch::new(k, w);
-            let any = filter_level_any(&x, &f, &p, o, h, w, &mut s);
-            assert_eq!(filter_level(&x, &f, &p, o, h, w, &mut s), any);
+            let lv = Level {
+                x: &x,
+                f: &f,
+                opened: o,
+                h,
+                w,
+            };
+            let any = filter_level_any(&lv, &p, &mut s);
+            assert_eq!(filter_level(&lv, &p, &mut s), any);
             // The dispatch takes the widest; the narrower ones must agree too.
             #[cfg(target_arch = "x86_64")]
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU has AVX2.
-                let avx2 = unsafe { filter_level_avx2(&x, &f, &p, o, h, w, &mut s) };
+                let avx2 = unsafe { filter_level_avx2(&lv, &p, &mut s) };
                 assert_eq!(avx2, any);
             }
         }
