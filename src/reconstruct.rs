@@ -12,7 +12,7 @@
 //! a row live in one reusable buffer, and `exp` is a branch-free polynomial that LLVM
 //! vectorises (std `expf` is a libm call per tap and dominated the run time).
 
-use ndarray::{Array2, Array3, ArrayView2, ArrayView3, ArrayViewMut2, Zip};
+use ndarray::{Array2, Array3, ArrayView2, ArrayView3, Zip};
 
 use crate::color::{LINEAR_MAX, LUMA_WEIGHTS};
 use crate::Error;
@@ -29,11 +29,14 @@ const MIN_CHROMA_LUMA: f32 = 1.0e-30;
 const GREY_PULL: f32 = 1.0e-6;
 
 /// The most floats per window pixel that [`reconstruct`] holds besides its inputs and its
-/// [3, H, W] output (for memory budgets): the demodulated copy 3, the level-0 luminance 1,
-/// fy and fc 4, and the aux-guided opening's plane 1 (while it is made, its links, 6 bytes
-/// a pixel, and two planes stand in for fy and fc). Coarser levels add a third of the last
-/// at most, after the luminance plane is freed; the per-row weights are k^2 x 128 floats.
-pub const SCRATCH_PLANES: f64 = 9.0;
+/// [3, H, W] output (for memory budgets): while filtering, the demodulated copy 3, the
+/// level-0 luminance 1, fy and fc 4, and the aux-guided opening's plane 1 (while it is
+/// made, its links, 6 bytes a pixel, and two planes stand in for fy and fc); coarser levels
+/// add a third of the last at most, after the luminance plane is freed; the per-row
+/// weights are k^2 x 128 floats. While composing level 0 (multi-level models): fy and fc 4,
+/// the composed level 1 one, the three chroma corrections 3, the sigmoid of a blend 1, the
+/// correction being made 1 and its coarse detail a quarter: 10.25.
+pub const SCRATCH_PLANES: f64 = 10.25;
 
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
@@ -59,6 +62,14 @@ pub const EMITTER_ALBEDO: f32 = 0.95;
 /// most this multiple of the finer level's own value: a firefly a coarse level spreads
 /// cannot raise its dark surroundings into a block.
 pub const COARSE_GAIN: f32 = 1.0;
+
+/// The chroma composition's common cap (step 4): a coarse correction leaves every channel
+/// at least this share of its fine value, so it cannot swing a pixel's hue to one primary.
+pub const CHROMA_KEEP: f32 = 0.5;
+
+/// Keeps the common cap's ratio finite where a channel has neither value nor correction
+/// (the cap is then 1).
+pub const CHROMA_EPS: f32 = 1e-12;
 
 /// What the fixed range term opens (`temc.range_opening`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -223,11 +234,15 @@ pub fn reconstruct(
         let n = hl * wl;
         let f = filters[l];
         let how = (p.upsample, p.coarse_clamp);
-        compose(&mut fy, &cy, &f[2 * k2 * n..][..n], hl, wl, how);
-        for c in 0..3 {
-            let (fine, coarse) = (&mut fc[c * n..][..n], &cc[c * n / 4..][..n / 4]);
-            compose(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl, how);
-        }
+        let dy = correction(&fy, &cy, &f[2 * k2 * n..][..n], hl, wl, how);
+        fy.iter_mut().zip(&dy).for_each(|(v, d)| *v += d);
+        let dc: Vec<Vec<f32>> = (0..3)
+            .map(|c| {
+                let (fine, coarse) = (&fc[c * n..][..n], &cc[c * n / 4..][..n / 4]);
+                correction(fine, coarse, &f[(2 * k2 + 1) * n..][..n], hl, wl, how)
+            })
+            .collect();
+        add_chroma_correction(&mut fc, &dc, n);
         (cy, cc) = (fy, fc);
     }
     Ok(recombine(&cy, &cc, d, hw, p.ldr))
@@ -774,15 +789,38 @@ impl Scratch {
     }
 }
 
-/// In place: `fine += sigmoid(blend) * U(coarse - D(fine))` (step 4 of the spec).
-fn compose(
-    fine: &mut [f32],
+/// `fc += share * dc` per pixel, `share` in [0, 1] the largest (all three channels alike)
+/// that leaves every channel at least [`CHROMA_KEEP`] of its value (step 4 of the spec).
+/// Clamping each channel after the composition instead turned a warm pixel whose
+/// correction drove red and green negative into pure blue.
+fn add_chroma_correction(fc: &mut [f32], dc: &[Vec<f32>], n: usize) {
+    let (r, rest) = fc.split_at_mut(n);
+    let (g, b) = rest.split_at_mut(n);
+    for (i, ((r, g), b)) in r.iter_mut().zip(g).zip(b.iter_mut()).enumerate() {
+        let room_share = |f: f32, d: f32| {
+            let (room, need) = ((1.0 - CHROMA_KEEP) * f.max(0.0), (-d).max(0.0));
+            (room + CHROMA_EPS) / (need.max(room) + CHROMA_EPS)
+        };
+        let (dr, dg, db) = (dc[0][i], dc[1][i], dc[2][i]);
+        let share = room_share(*r, dr)
+            .min(room_share(*g, dg))
+            .min(room_share(*b, db));
+        *r += dr * share;
+        *g += dg * share;
+        *b += db * share;
+    }
+}
+
+/// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, each capped at [`COARSE_GAIN`]
+/// times the fine value with the coarse clamp: what step 4 of the spec adds to `fine`.
+fn correction(
+    fine: &[f32],
     coarse: &[f32],
     blend: &[f32],
     h: usize,
     w: usize,
     (up, clamp): (Upsample, bool),
-) {
+) -> Vec<f32> {
     let cap = |f: f32, c: f32| {
         if clamp {
             c.min(COARSE_GAIN * f.max(0.0))
@@ -798,23 +836,27 @@ fn compose(
         .for_each(|d, &c| *d = c - *d);
     let blend: Vec<f32> = blend.iter().map(|&b| sigmoid(b)).collect(); // one vectorised pass
     let blend = ArrayView2::from_shape((h, w), &blend).expect("a blend per fine pixel");
-    let mut fine = ArrayViewMut2::from_shape((h, w), fine).expect("a fine plane");
+    let fine = ArrayView2::from_shape((h, w), fine).expect("a fine plane");
+    let mut out = Array2::<f32>::zeros((h, w));
     match up {
-        Upsample::Nearest => Zip::indexed(&mut fine)
+        Upsample::Nearest => Zip::indexed(&mut out)
+            .and(fine)
             .and(blend)
-            .for_each(|(y, x), f, &b| *f += b * cap(*f, detail[[y / 2, x / 2]])),
+            .for_each(|(y, x), o, &f, &b| *o = b * cap(f, detail[[y / 2, x / 2]])),
         Upsample::Bilinear => {
             let (ys, xs) = (bilinear_taps(h), bilinear_taps(w));
-            Zip::indexed(&mut fine)
+            Zip::indexed(&mut out)
+                .and(fine)
                 .and(blend)
-                .for_each(|(y, x), f, &b| {
+                .for_each(|(y, x), o, &f, &b| {
                     let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
                     // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
                     let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
-                    *f += b * cap(*f, 0.75 * row(y0) + 0.25 * row(y1));
+                    *o = b * cap(f, 0.75 * row(y0) + 0.25 * row(y1));
                 })
         }
     }
+    out.into_raw_vec_and_offset().0
 }
 
 /// Per fine index along an axis of `n` fine pixels: (the nearer coarse index, weight 3/4;
@@ -1486,6 +1528,53 @@ mod tests {
         let ratio = |o: &[f32], i| lum(o, n, i) / lum(&fine, n, i);
         assert!((0..n).all(|i| ratio(&out, i) <= 2.0 + 1e-4));
         assert!((0..n).any(|i| ratio(&free, i) > 10.0), "the block it caps");
+    }
+
+    /// The chroma composition's common cap (recon_vectors' chroma_cap case): dark warm
+    /// pixels in a 2x2 block with an orange bright one, the fine chroma kernel one-hot, the
+    /// coarse one a box, blends open. The coarse correction drives their red and green far
+    /// below zero but not their blue; clamped channel by channel they came out pure blue.
+    #[test]
+    fn a_coarse_correction_does_not_turn_a_warm_pixel_blue() {
+        let (h, w, k) = (8, 8, 3);
+        let n = h * w;
+        let mut rgb: Vec<f32> = [0.1, 0.08, 0.05].iter().flat_map(|&v| vec![v; n]).collect();
+        for (c, v) in [4.0, 2.4, 0.1].into_iter().enumerate() {
+            rgb[c * n + 2 * w + 2] = v;
+        }
+        let mut fine = vec![0.0; channels(k, false) * n];
+        fine[9 * n..18 * n].fill(-LOGIT_MAX);
+        fine[13 * n..14 * n].fill(LOGIT_MAX);
+        fine[18 * n..20 * n].fill(LOGIT_MAX);
+        let coarse = vec![0.0; channels(k, false) * n / 4];
+        let out = run(&params(2, k), &rgb, None, &[fine, coarse], h, w);
+        for i in [2 * w + 3, 3 * w + 2, 3 * w + 3] {
+            let (r, g, b) = (out[i], out[n + i], out[2 * n + i]);
+            assert!(b <= r && b <= g && r > 0.5 * b, "pixel {i}: {r} {g} {b}");
+        }
+    }
+
+    /// Per pixel, the chroma correction is added whole where it leaves every channel at least
+    /// [`CHROMA_KEEP`] of its value, and otherwise shrunk, all channels alike, until the first
+    /// one reaches that floor.
+    #[test]
+    fn the_chroma_correction_shrinks_all_channels_alike() {
+        let fc = vec![0.4, 0.3, 0.2, 0.1, 0.2, 0.05];
+        let dc = vec![vec![0.1, -0.3], vec![-0.1, -0.1], vec![0.05, 0.05]];
+        let mut out = fc.clone();
+        add_chroma_correction(&mut out, &dc, 2);
+        let whole = [0.5, 0.1, 0.25]; // green lands exactly on its floor: still whole
+        assert!([out[0], out[2], out[4]]
+            .iter()
+            .zip(whole)
+            .all(|(o, w)| (o - w).abs() < 1e-6));
+        let share = (out[1] - 0.3) / -0.3;
+        assert!(
+            (share - 0.5).abs() < 1e-6,
+            "red reaches half its value: {share}"
+        );
+        assert!((out[3] - (0.1 - 0.1 * share)).abs() < 1e-6);
+        assert!((out[5] - (0.05 + 0.05 * share)).abs() < 1e-6);
     }
 
     fn json_f32(v: &serde_json::Value) -> f32 {

@@ -35,6 +35,11 @@ RANGE_OPENINGS = ("plain", "aux")
 # COARSE_GAIN times the finer level's own value, so a firefly a coarse level spreads cannot
 # raise its dark surroundings into a block (keep-mean returns what it holds back).
 COARSE_GAIN = 1.0
+# The chroma composition's common cap (docs/reconstruction.md, step 4): a coarse correction
+# leaves every channel at least CHROMA_KEEP of its fine value; CHROMA_EPS keeps the cap's
+# ratio finite where a channel has neither value nor correction (the cap is then 1).
+CHROMA_KEEP = 0.5
+CHROMA_EPS = 1e-12
 
 
 def channels(kernel, guide=False):
@@ -197,10 +202,28 @@ def _compose(fine, coarse, blend, upsample="nearest", clamp=False):
     The correction, not each term, is upsampled: with `bilinear` the coarse level's blocks
     no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4). `clamp`:
     the correction is capped at COARSE_GAIN times the fine value."""
+    return fine + _correction(fine, coarse, blend, upsample, clamp)
+
+
+def _correction(fine, coarse, blend, upsample, clamp):
+    """sigmoid(blend) * U(coarse - D(fine)), capped at COARSE_GAIN times fine with `clamp`."""
     c = _up(coarse - F.avg_pool2d(fine, 2), upsample)
     if clamp:
         c = torch.minimum(c, COARSE_GAIN * fine.clamp(min=0.0))
-    return fine + torch.sigmoid(blend) * c
+    return torch.sigmoid(blend) * c
+
+
+def _compose_chroma(fine, coarse, blend, upsample="nearest", clamp=False):
+    """_compose for the chroma filter's 3 channels, with the correction scaled down per pixel,
+    all channels alike, until no channel falls below CHROMA_KEEP of its fine value. A
+    correction that drove red and green negative but not blue was clamped channel by channel
+    in _recombine, and a warm pixel beside a bright object came out pure blue
+    (docs/reconstruction.md, step 4)."""
+    d = _correction(fine, coarse, blend, upsample, clamp)
+    room = (1.0 - CHROMA_KEEP) * fine.clamp(min=0.0)
+    need = (-d).clamp(min=0.0)
+    share = (room + CHROMA_EPS) / (torch.maximum(need, room) + CHROMA_EPS)
+    return fine + d * share.amin(dim=1, keepdim=True)
 
 
 def _recombine(cy, cc):
@@ -247,7 +270,7 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
         cy = _compose(fy, cy, a, upsample, coarse_clamp)
-        cc = _compose(fc, cc, b, upsample, coarse_clamp)
+        cc = _compose_chroma(fc, cc, b, upsample, coarse_clamp)
     out = _recombine(cy, cc)
     if demodulate:
         out = out * d

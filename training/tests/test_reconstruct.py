@@ -117,6 +117,40 @@ def test_bilinear_composition_keeps_the_mean_and_shows_no_block_steps(blend):
     assert set(steps.round(decimals=6).tolist()) == {0.0, 1.0}
 
 
+def test_the_chroma_composition_scales_its_correction_and_keeps_every_channel():
+    """Where a coarse correction would take a channel below CHROMA_KEEP of its fine value, the
+    whole correction shrinks, all three channels alike, to where the first one reaches that
+    floor; elsewhere it is added whole (the luma composition's _compose)."""
+    from temc_train.reconstruct import CHROMA_KEEP, _compose, _compose_chroma, _correction
+    gen = torch.Generator().manual_seed(9)
+    fine = torch.rand(2, 3, 16, 12, generator=gen, dtype=torch.float64) ** 3
+    coarse = torch.rand(2, 3, 8, 6, generator=gen, dtype=torch.float64) ** 3
+    blend = torch.randn(2, 1, 16, 12, generator=gen, dtype=torch.float64) * 3
+    for up in ("nearest", "bilinear"):
+        got = _compose_chroma(fine, coarse, blend, up)
+        whole = _compose(fine, coarse, blend, up)
+        d = _correction(fine, coarse, blend, up, False)
+        assert (got >= CHROMA_KEEP * fine - 1e-12).all()
+        free = (whole >= CHROMA_KEEP * fine).all(dim=1, keepdim=True).expand_as(got)
+        assert free.any() and not free.all()
+        assert torch.equal(got[free], whole[free])
+        share = ((got - fine) / d)[~free].view(-1)  # one share per pixel, all channels alike
+        bounded = (got - CHROMA_KEEP * fine).amin(dim=1, keepdim=True).expand_as(got)[~free]
+        assert ((share > -1e-9) & (share < 1)).all() and (bounded.abs() < 1e-12).all()
+
+
+def test_a_coarse_correction_does_not_turn_a_warm_pixel_blue():
+    """recon_vectors' chroma_cap case: dark warm pixels in a 2x2 block with an orange bright
+    one; the coarse correction drives their red and green far below zero, not their blue.
+    Clamped channel by channel they came out pure blue (0, 0, 2.1)."""
+    from temc_train.vectors.recon_vectors import cases, run
+    case = next(c for c in cases() if c["name"] == "chroma_cap_8x8_L2_k3")
+    out = run(case, torch.float64)
+    for y, x in ((2, 3), (3, 2), (3, 3)):
+        r, g, b = out[:, y, x]
+        assert b <= r and b <= g and r > 0.5 * b
+
+
 def test_zero_logits_at_one_level_are_a_box_filter_renormalised_at_the_border():
     gen = torch.Generator().manual_seed(1)
     rgb = torch.rand(2, 3, 7, 9, generator=gen) + 0.1

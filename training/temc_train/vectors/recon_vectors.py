@@ -102,7 +102,7 @@ def cases():
     c = _case("bilinear_lamp_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, upsample="bilinear")
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
-    return out + aux_opening_cases(rng) + coarse_clamp_cases(rng)
+    return out + aux_opening_cases(rng) + coarse_clamp_cases(rng) + chroma_cap_cases(rng)
 
 
 def coarse_clamp_cases(rng):
@@ -187,6 +187,21 @@ def _flat(a, digits=None):
     return [_num(float(f"{v:.{digits}g}") if digits else v) for v in np.asarray(a).ravel()]
 
 
+def chroma_cap_cases(rng):
+    """The chroma composition's common cap (step 4): an orange bright pixel with little blue
+    in a 2x2 block of warm dark ones, the fine chroma kernel one-hot on the centre, the
+    coarse one a box, blends open. The coarse correction drives the dark pixels' red and
+    green far below zero but not their blue; before the cap they came out pure blue (0, 0,
+    2.1), now near grey (0.151, 0.152, 0.149)."""
+    c = _case("chroma_cap_8x8_L2_k3", rng, 8, 8, 2, 3, sd=0.0)
+    c["rgb"][:] = np.array([0.1, 0.08, 0.05])[:, None, None]
+    c["rgb"][:, 2, 2] = [4.0, 2.4, 0.1]
+    c["filters"][0][9:18] = -LOGIT_MAX
+    c["filters"][0][13] = LOGIT_MAX
+    c["filters"][0][18:20] = LOGIT_MAX
+    return [c]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.parse_args(argv)  # --help; no options
@@ -206,3 +221,4 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
