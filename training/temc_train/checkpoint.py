@@ -19,7 +19,7 @@ back, so a resumed old run is upgraded on its next save. Files are read with
 """
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import torch
 
@@ -130,6 +130,22 @@ class Checkpoint:
         model.range_opening = r["range_opening"]
         model.coarse_clamp = r["coarse_clamp"]
         return model, arch, float(width)
+
+    def averaged(self, other: "Checkpoint") -> "Checkpoint":
+        """This checkpoint with its weights the mean of its own and `other`'s (weight
+        averaging of two points of one run, Izmailov et al. 2018); its state, steps and log
+        stay this one's, Adam's moments are dropped (they belong to neither mean). Both must
+        be the same network with the same reconstruction."""
+        for key in ("arch", "width", "recon"):
+            if getattr(self, key) != getattr(other, key):
+                raise ValueError(f"checkpoints differ in {key}: {getattr(self, key)!r} "
+                                 f"against {getattr(other, key)!r}")
+        if self.model.keys() != other.model.keys():
+            raise ValueError("checkpoints hold different tensors")
+        mean = {k: (0.5 * (v.double() + other.model[k].double())).to(v.dtype)
+                if torch.is_floating_point(v) else v for k, v in self.model.items()}
+        state = None if self.state is None else {**self.state, "opt_dropped": "weights averaged"}
+        return replace(self, model=mean, opt=None, state=state)
 
     # -- writing -----------------------------------------------------------------------
 

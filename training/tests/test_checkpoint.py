@@ -169,3 +169,30 @@ def test_committed_runs_read_as_training_checkpoints(run):
     assert ck.training and ck.steps > 0 and (ck.opt is not None or ck.state.get("opt_dropped"))
     assert set(ck.recon) == set(RECON_DEFAULTS) and ck.info()["train_steps"] == ck.steps
     assert list(ck.to_dict()) == TRAINING_KEYS
+
+
+def test_two_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
+    """drivers.average: the weights' mean, the first checkpoint's state and steps, no moments;
+    checkpoints of different networks are refused."""
+    from temc_train.drivers import average
+    a, b = tiny(), tiny()
+    with torch.no_grad():
+        for p in b.parameters():
+            p.add_(1.0)
+    state = {"step": 7, "train_s": 3.0, "gpu_seconds": 0.0}
+    for name, m, st in (("a", a, state), ("b", b, dict(state, step=5))):
+        Checkpoint(model=m.state_dict(), arch="temc2", width=0.0625, dataset="tiny",
+                   opt=adam_state(m), state=st).write(str(tmp_path / f"{name}.pt"))
+    average.main([str(tmp_path / "a.pt"), str(tmp_path / "b.pt"), str(tmp_path / "mean.pt")])
+    got = Checkpoint.read(str(tmp_path / "mean.pt"))
+    assert got.steps == 7 and got.opt is None and got.state["opt_dropped"] == "weights averaged"
+    sa, sb = a.state_dict(), b.state_dict()
+    moved = [k for k, v in got.model.items() if torch.is_floating_point(v)
+             and torch.allclose(v, (sa[k] + sb[k]) / 2, atol=1e-6) and not torch.equal(v, sa[k])]
+    assert all(torch.allclose(v, (sa[k] + sb[k]) / 2, atol=1e-6) if torch.is_floating_point(v)
+               else torch.equal(v, sa[k]) for k, v in got.model.items())
+    assert len(moved) >= len(list(a.parameters()))  # every weight moved half way
+    other = Checkpoint(model=tiny(levels=2).state_dict(), arch="temc2", width=0.0625,
+                       recon=dict(RECON_DEFAULTS, levels=2))
+    with pytest.raises(ValueError):
+        Checkpoint.read(str(tmp_path / "a.pt")).averaged(other)
