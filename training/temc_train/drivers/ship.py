@@ -73,9 +73,14 @@ NOTES = {
                   "shipping); then, on 2026-12-05, 1.1 CPU-hours with both, on 107 new scenes that "
                   "scripts/train-gpu's renderer made beside it (the `cpu-l3-scenes` of the data row: "
                   "every family, noisy from 1 spp, 30 % sampled as weaker renderers sample, "
-                  "`--weak-share 0.3`), one learning-rate cycle peaking at 3e-4. The Cycles family, "
-                  "never trained on, is its verdict (docs/cycles-report.md); it continues on GPUs "
-                  "(scripts/gpu-session).",
+                  "`--weak-share 0.3`), one learning-rate cycle peaking at 3e-4; later that day 1.3 "
+                  "CPU-hours more on the same scenes, a second such cycle (60,159 -> 65,322 "
+                  "steps). Its weights are the mean of the checkpoints at the start and the end of "
+                  "that second cycle (weight averaging, Izmailov et al. 2018): the end alone was "
+                  "better at 4 and 16 spp on the Cycles family but 2 % worse at 64, the mean better "
+                  "at every spp (docs/reconstruction.md, 'A second cycle, averaged'). The Cycles "
+                  "family, never trained on, is its verdict (docs/cycles-report.md); it continues "
+                  "on GPUs (scripts/gpu-session).",
     "temc2-balanced": "Its first 8 CPU-hours (28,800 s, 39,512 steps) trained on spectral-v2; on "
                       "2026-12-05 it trained 0.8 CPU-hours more on the 107 scenes high's run "
                       "rendered then (the `cpu-l3-scenes` of the data row: every scene family, noisy "
