@@ -221,4 +221,3 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
-
