@@ -131,18 +131,22 @@ class Checkpoint:
         model.coarse_clamp = r["coarse_clamp"]
         return model, arch, float(width)
 
-    def averaged(self, other: "Checkpoint") -> "Checkpoint":
-        """This checkpoint with its weights the mean of its own and `other`'s (weight
-        averaging of two points of one run, Izmailov et al. 2018); its state, steps and log
-        stay this one's, Adam's moments are dropped (they belong to neither mean). Both must
+    def averaged(self, *others: "Checkpoint") -> "Checkpoint":
+        """This checkpoint with its weights the mean of its own and every one of `others`
+        (weight averaging of points of one run, Izmailov et al. 2018); its state, steps and
+        log stay this one's, Adam's moments are dropped (they belong to no mean). All must
         be the same network with the same reconstruction."""
-        for key in ("arch", "width", "recon"):
-            if getattr(self, key) != getattr(other, key):
-                raise ValueError(f"checkpoints differ in {key}: {getattr(self, key)!r} "
-                                 f"against {getattr(other, key)!r}")
-        if self.model.keys() != other.model.keys():
-            raise ValueError("checkpoints hold different tensors")
-        mean = {k: (0.5 * (v.double() + other.model[k].double())).to(v.dtype)
+        if not others:
+            raise ValueError("nothing to average with")
+        for other in others:
+            for key in ("arch", "width", "recon"):
+                if getattr(self, key) != getattr(other, key):
+                    raise ValueError(f"checkpoints differ in {key}: {getattr(self, key)!r} "
+                                     f"against {getattr(other, key)!r}")
+            if self.model.keys() != other.model.keys():
+                raise ValueError("checkpoints hold different tensors")
+        every = (self, *others)
+        mean = {k: (sum(c.model[k].double() for c in every) / len(every)).to(v.dtype)
                 if torch.is_floating_point(v) else v for k, v in self.model.items()}
         state = None if self.state is None else {**self.state, "opt_dropped": "weights averaged"}
         return replace(self, model=mean, opt=None, state=state)

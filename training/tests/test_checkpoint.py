@@ -196,3 +196,27 @@ def test_two_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
                        recon=dict(RECON_DEFAULTS, levels=2))
     with pytest.raises(ValueError):
         Checkpoint.read(str(tmp_path / "a.pt")).averaged(other)
+
+
+def test_three_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
+    """drivers.average takes several checkpoints (snapshots along one cycle): each weight
+    is the mean of all three, and the first one's steps stay."""
+    from temc_train.drivers import average
+    nets = [tiny() for _ in range(3)]
+    with torch.no_grad():
+        for i, m in enumerate(nets):
+            for p in m.parameters():
+                p.fill_(float(i))
+    for i, m in enumerate(nets):
+        Checkpoint(model=m.state_dict(), arch="temc2", width=0.0625, dataset="tiny",
+                   opt=adam_state(m), state={"step": 9 - i, "train_s": 1.0, "gpu_seconds": 0.0}
+                   ).write(str(tmp_path / f"{i}.pt"))
+    average.main([str(tmp_path / f"{i}.pt") for i in range(3)] + [str(tmp_path / "mean.pt")])
+    got = Checkpoint.read(str(tmp_path / "mean.pt"))
+    assert got.steps == 9 and got.opt is None
+    params = [k for k, _ in nets[0].named_parameters()]
+    # Near (0 + 1 + 2) / 3 = 1: adam_state's step moved each net's weights by its lr.
+    assert params and all(torch.allclose(got.model[k], sum(m.state_dict()[k] for m in nets) / 3,
+                                         atol=1e-6)
+                          and torch.allclose(got.model[k], torch.ones_like(got.model[k]), atol=1e-2)
+                          for k in params)
