@@ -171,6 +171,18 @@ def test_border_ratio_sees_only_the_frame():
     assert ev.mean_ratio(inner, r) < 0.99
 
 
+def test_dark_relmse_sees_only_the_darkest_pixels():
+    r = np.full((40, 40, 3), 1.0, np.float32)
+    r[:, :10] = 0.01                      # the darkest quarter
+    blotch, glare = r.copy(), r.copy()
+    blotch[5:8, 2:5] = 0.2                # a blotch in the dark
+    glare[20:23, 20:23] = 1.5             # an error as large in the light
+    # All of the blotch's error lies in the quarter: four times its whole-image mean.
+    assert ev.dark_relmse(blotch, r) == pytest.approx(4 * ev.relmse(blotch, r), rel=1e-6)
+    assert ev.relmse(blotch, r) > 0
+    assert ev.dark_relmse(glare, r) == 0 and ev.relmse(glare, r) > 0
+
+
 def test_pfm_round_trip(tmp_path):
     rgb = np.random.default_rng(3).random((5, 7, 3)).astype(np.float32)
     grey = rgb[..., 0].copy()

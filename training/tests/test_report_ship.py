@@ -220,7 +220,7 @@ def test_report_sections_from_the_committed_measurements_match_the_docs():
     body = (report.targets(denoisers, spps, m.values, m.geomean, m.mean)
             + report.family_section(m, denoisers, spps) + report.verdict_section(m, spps, labels)
             + report.per_scene_section(m, denoisers, spps, scenes)
-            + report.border_section(m, denoisers, spps)
+            + report.border_section(m, denoisers, spps) + report.dark_section(m, denoisers, spps)
             + report.spp_tables(m, denoisers, spps) + report.error_vs_time_section(m, denoisers, spps))
     start = doc.index("## Targets (issue 15)")
     assert doc[start:start + len(body)] == body

@@ -283,7 +283,8 @@ def measure_scene(rec, root, denoisers, aux):
         for name, (img, secs) in outs.items():
             rows.append({"scene": rec["name"], "spp": spp, "denoiser": name,
                          "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref),
-                         "border/ref": ev.border_ratio(img, ref)})
+                         "border/ref": ev.border_ratio(img, ref),
+                         "dark RelMSE": ev.dark_relmse(img, ref)})
         if spp == 16:
             strip = (outs, ref)
             if aux:
@@ -464,6 +465,37 @@ def border_section(m, denoisers, spps):
     return md + [""]
 
 
+def dark_section(m, denoisers, spps):
+    """RelMSE over each reference's darkest pixels (evaluate.dark_relmse) per denoiser and
+    spp, as the geometric mean over the scenes of its ratio to OIDN high's, with the worst
+    scene. Measurements from before the column have none."""
+    if not m.rows or "dark RelMSE" not in m.rows[0] or "OIDN high" not in denoisers:
+        return []
+    md = ["## Dark regions", "",
+          f"RelMSE over the darkest {ev.DARK_SHARE:.0%} of each reference's pixels (by "
+          "luminance), where blotches around sparse samples show, as a ratio to OIDN high's on "
+          "the same pixels: geometric mean over the scenes, and the worst scene.", "",
+          "| denoiser | " + " | ".join(f"{s} spp" for s in spps) + " |",
+          "|---|" + "---:|" * len(spps)]
+    scenes = list(dict.fromkeys(r["scene"] for r in m.rows))
+    for n in denoisers:
+        if n == "OIDN high":
+            continue
+        cells = []
+        for s in spps:
+            ratio = {c: m.at(n, c, s, "dark RelMSE") / max(m.at("OIDN high", c, s, "dark RelMSE"),
+                                                            1e-12) for c in scenes}
+            ratio = {c: v for c, v in ratio.items() if np.isfinite(v)}
+            if not ratio:
+                cells.append("-")
+                continue
+            worst = max(ratio, key=ratio.get)
+            geo = float(np.exp(np.mean(np.log(np.maximum(list(ratio.values()), 1e-12)))))
+            cells.append(f"{geo:.2f}x ({worst} {ratio[worst]:.2f}x)")
+        md.append(f"| {n} | " + " | ".join(cells) + " |")
+    return md + [""]
+
+
 def spp_tables(m, denoisers, spps):
     metrics = list(ev.METRICS)
     md = []
@@ -564,7 +596,7 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra, page=
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
             + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
             + per_scene_section(m, denoisers, spps, scenes) + border_section(m, denoisers, spps)
-            + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps, page["img"])
+            + dark_section(m, denoisers, spps) + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps, page["img"])
             + extra)
 
 
