@@ -99,9 +99,11 @@ class DeviceSet:
     its reference, padded to the largest scene (each scene's crops stay inside its own
     size). Scenes join as they are rendered (`add`)."""
 
-    def __init__(self, device):
+    def __init__(self, device, max_spp: int = 0):
         self.device = torch.device(device)
         self.names, self.spp = [], None
+        # Noisy inputs drawn only up to this spp (0: all); see train.py's --max-input-spp.
+        self.max_spp, self.allowed = max_spp, None
         self.planes = self.reference = self.scale = self.hw = None
 
     def __len__(self):
@@ -117,6 +119,11 @@ class DeviceSet:
         self.spp = self.spp or list(new[0].spp)
         if any(list(s.spp) != self.spp for s in new):
             raise ValueError(f"every scene needs the noisy spp {self.spp}")
+        if self.max_spp and self.allowed is None:
+            keep = [k for k, v in enumerate(self.spp) if v <= self.max_spp]
+            if not keep:
+                raise ValueError(f"no noisy spp of {self.spp} is at most {self.max_spp}")
+            self.allowed = torch.tensor(keep, device=self.device)
         h = max([s.shape[0] for s in new] + ([self.planes.shape[2]] if self.names else []))
         w = max([s.shape[1] for s in new] + ([self.planes.shape[3]] if self.names else []))
         planes = np.stack([_pad(np.stack([_planes(s, i) for i in range(len(self.spp))]), h, w) for s in new])
@@ -149,7 +156,11 @@ class DeviceSet:
         hw = self.hw[i]
         spin = torch.where((u() < 0.5)[:, None, None], random_rotations(n, gen, dev),
                            torch.eye(3, device=dev).expand(n, 3, 3))
-        return {"i": i, "s": torch.randint(len(self.spp), (n,), generator=gen, device=dev), "c": c,
+        if self.allowed is None:
+            s = torch.randint(len(self.spp), (n,), generator=gen, device=dev)
+        else:
+            s = self.allowed[torch.randint(len(self.allowed), (n,), generator=gen, device=dev)]
+        return {"i": i, "s": s, "c": c,
                 "y0": (u() * (hw[:, 0] - c + 1)).long(), "x0": (u() * (hw[:, 1] - c + 1)).long(),
                 "flip": u() < 0.5, "k": torch.randint(4, (n,), generator=gen, device=dev),
                 "spin": spin, "stops": u() * 2.0 - 1.0, "mode": u()}

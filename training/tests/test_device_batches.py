@@ -93,3 +93,18 @@ def test_scenes_join_as_they_land_and_the_smallest_bounds_the_crop():
     assert ds.draw(4, 128, torch.Generator().manual_seed(0))["c"] == 20
     with pytest.raises(ValueError, match="spp"):
         ds.add([scene("c", 8, 8, 3, spp=(2, 8))])
+
+
+def test_max_spp_draws_only_the_noisier_inputs():
+    """--max-input-spp: inputs whose reference is not much cleaner than them are never drawn;
+    without it every spp is, from the same random stream as before."""
+    gen = lambda: torch.Generator().manual_seed(5)  # noqa: E731
+    scenes = [scene("a", 24, 24, 1, spp=(1, 4, 16)), scene("b", 24, 24, 2, spp=(1, 4, 16))]
+    capped = db.DeviceSet("cpu", max_spp=4)
+    capped.add(scenes)
+    assert set(capped.draw(256, 16, gen())["s"].tolist()) == {0, 1}
+    every = db.DeviceSet("cpu")
+    every.add(scenes)
+    assert set(every.draw(256, 16, gen())["s"].tolist()) == {0, 1, 2}
+    with pytest.raises(ValueError, match="at most"):
+        db.DeviceSet("cpu", max_spp=0.5).add(scenes)

@@ -234,7 +234,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
             if hp["mean_weight"] else "")
          + (f", plus {hp['dark_weight']:g} x the block log-ratio term (loss.block_log_error)"
             + (f" from step {ck['dark_from_step']:,}" if ck.get("dark_from_step") else "")
-            if hp.get("dark_weight") else "") + " |"),
+            if hp.get("dark_weight") else "")
+         + (f"; its last cycle drew noisy inputs of at most {hp['max_input_spp']} spp "
+            "(train --max-input-spp)" if hp.get("max_input_spp") else "") + " |"),
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s)"
         + (f" (grown from {ck['levels_from'][1]} at step {ck['levels_from'][0]:,}: train.add_levels)"
            if ck.get("levels_from") else "")

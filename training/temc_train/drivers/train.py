@@ -300,7 +300,7 @@ class BatchSource:
                 raise SystemExit("--sampler device does not do Noise2Noise targets (--target-spp)")
             from ..device_batches import DeviceSet
 
-            self.set = DeviceSet(device)
+            self.set = DeviceSet(device, a.max_input_spp)
             self.set.add(scenes)
             self.gen = torch.Generator(device).manual_seed(int(np.random.SeedSequence(seed).generate_state(1)[0]))
         elif a.workers > 0:
@@ -397,7 +397,8 @@ def hparams(a, world: int) -> dict:
     """The recipe, as the model card reads it from the checkpoint."""
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
-            "mean_weight": a.mean_weight, "dark_weight": a.dark_weight, "target_spp": a.target_spp, "loss": a.loss,
+            "mean_weight": a.mean_weight, "dark_weight": a.dark_weight, "target_spp": a.target_spp,
+            "max_input_spp": a.max_input_spp, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
 
@@ -671,6 +672,11 @@ def main(argv=None):
     ap.add_argument("--dark-weight", type=float, default=0.0,
                     help="weight of the block log-ratio energy term (loss.block_log_error), "
                          "which charges darkened dark regions")
+    ap.add_argument("--max-input-spp", type=int, default=0,
+                    help="--sampler device: draw noisy inputs only up to this spp (0: every "
+                         "spp). A reference only twice as clean as its input (256 spp against "
+                         "512) is a noisy target, and MS-SSIM against noise rewards keeping "
+                         "noise; validation still covers every spp")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "
@@ -703,6 +709,8 @@ def main(argv=None):
     ap.add_argument("--save-minutes", type=float, default=5.0)
     a = ap.parse_args(argv)
     a.loss = a.loss or ("relmse" if a.target_spp else "mix")
+    if a.max_input_spp and a.sampler != "device":
+        ap.error("--max-input-spp needs --sampler device")
     f = train(a)
     print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} CPU s + "
           f"{f['gpu_seconds']:.0f} GPU s -> {a.run}/model.pt")
