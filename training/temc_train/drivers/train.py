@@ -674,9 +674,9 @@ def main(argv=None):
                          "which charges darkened dark regions")
     ap.add_argument("--max-input-spp", type=int, default=0,
                     help="--sampler device: draw noisy inputs only up to this spp (0: every "
-                         "spp). A reference only twice as clean as its input (256 spp against "
-                         "512) is a noisy target, and MS-SSIM against noise rewards keeping "
-                         "noise; validation still covers every spp")
+                         "spp; validation still covers every spp). Measured 2026-12-05 (64 "
+                         "against 512-spp references): worse on the Cycles family at every spp, "
+                         "most at 64 (docs/reconstruction.md, 'Three more cycles')")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "
