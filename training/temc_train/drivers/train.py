@@ -676,7 +676,7 @@ def main(argv=None):
                     help="--sampler device: draw noisy inputs only up to this spp (0: every "
                          "spp; validation still covers every spp). Measured 2026-12-05 (64 "
                          "against 512-spp references): worse on the Cycles family at every spp, "
-                         "most at 64 (docs/reconstruction.md, 'Three more cycles')")
+                         "most at 64 (docs/reconstruction.md, 'More cycles on new scenes')")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "
