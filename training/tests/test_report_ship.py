@@ -446,3 +446,13 @@ def test_blends_probe_reads_every_level_but_the_coarsest():
     assert len(got) == 2
     assert got[0] == pytest.approx((1 / (1 + np.exp(2.0)),) * 2, rel=1e-5)
     assert got[1] == pytest.approx((0.5, 0.5))
+
+
+def test_dark_section_gives_the_geometric_mean_ratio_and_the_worst_scene():
+    rows = [{"scene": sc, "spp": 4, "denoiser": d, "dark RelMSE": v}
+            for sc, ours, oidn in (("a", 0.02, 0.01), ("b", 0.08, 0.01))
+            for d, v in (("temc", ours), ("OIDN high", oidn))]
+    md = report.dark_section(report.Means(rows), ["temc", "OIDN high"], [4])
+    assert md[-2] == "| temc | 4.00x (b 8.00x) |"  # sqrt(2 x 8)
+    assert report.dark_section(report.Means([{k: v for k, v in r.items() if k != "dark RelMSE"}
+                                             for r in rows]), ["temc", "OIDN high"], [4]) == []
