@@ -99,11 +99,13 @@ class DeviceSet:
     its reference, padded to the largest scene (each scene's crops stay inside its own
     size). Scenes join as they are rendered (`add`)."""
 
-    def __init__(self, device, max_spp: int = 0):
+    def __init__(self, device, max_spp: int = 0, spp_weights=None):
         self.device = torch.device(device)
         self.names, self.spp = [], None
-        # Noisy inputs drawn only up to this spp (0: all); see train.py's --max-input-spp.
+        # Noisy inputs drawn only up to this spp (0: all), and each spp's relative share of
+        # the draws (None: equal); see train.py's --max-input-spp and --spp-weights.
         self.max_spp, self.allowed = max_spp, None
+        self.spp_weights, self.weights = spp_weights, None
         self.planes = self.reference = self.scale = self.hw = None
 
     def __len__(self):
@@ -124,6 +126,8 @@ class DeviceSet:
             if not keep:
                 raise ValueError(f"no noisy spp of {self.spp} is at most {self.max_spp}")
             self.allowed = torch.tensor(keep, device=self.device)
+        if self.spp_weights is not None and self.weights is None:
+            self.weights = self._weights(self.spp_weights)
         h = max([s.shape[0] for s in new] + ([self.planes.shape[2]] if self.names else []))
         w = max([s.shape[1] for s in new] + ([self.planes.shape[3]] if self.names else []))
         planes = np.stack([_pad(np.stack([_planes(s, i) for i in range(len(self.spp))]), h, w) for s in new])
@@ -141,6 +145,18 @@ class DeviceSet:
         self.min_side = int(self.hw.min())  # kept here: reading it per batch syncs the GPU
         return len(new)
 
+    def _weights(self, w) -> torch.Tensor:
+        """The draw's weight per noisy spp (zero above max_spp), checked against the spp list."""
+        w = [float(x) for x in w]
+        if len(w) != len(self.spp) or min(w) < 0:
+            raise ValueError(f"--spp-weights needs {len(self.spp)} weights >= 0 "
+                             f"(for spp {self.spp}), got {w}")
+        if self.max_spp:
+            w = [x if v <= self.max_spp else 0.0 for x, v in zip(w, self.spp)]
+        if sum(w) <= 0:
+            raise ValueError(f"--spp-weights {w} draws no noisy input")
+        return torch.tensor(w, device=self.device)
+
     def batch(self, n: int, crop: int, gen: torch.Generator) -> list:
         """n random training crops: (chroma [n,2,c,c], luma [n,1,c,c], aux [n,7,c,c],
         noisy [n,3,c,c], albedo [n,3,c,c], reference [n,3,c,c]), float32 on the device,
@@ -156,7 +172,9 @@ class DeviceSet:
         hw = self.hw[i]
         spin = torch.where((u() < 0.5)[:, None, None], random_rotations(n, gen, dev),
                            torch.eye(3, device=dev).expand(n, 3, 3))
-        if self.allowed is None:
+        if self.weights is not None:
+            s = torch.multinomial(self.weights, n, replacement=True, generator=gen)
+        elif self.allowed is None:
             s = torch.randint(len(self.spp), (n,), generator=gen, device=dev)
         else:
             s = self.allowed[torch.randint(len(self.allowed), (n,), generator=gen, device=dev)]

@@ -108,3 +108,20 @@ def test_max_spp_draws_only_the_noisier_inputs():
     assert set(every.draw(256, 16, gen())["s"].tolist()) == {0, 1, 2}
     with pytest.raises(ValueError, match="at most"):
         db.DeviceSet("cpu", max_spp=0.5).add(scenes)
+
+
+def test_spp_weights_set_each_spp_share_of_the_draws():
+    """--spp-weights: each noisy spp is drawn in proportion to its weight (zero: never), and
+    a weight list that does not fit the data set's spp is refused."""
+    scenes = [scene("a", 24, 24, 1, spp=(1, 4, 16)), scene("b", 24, 24, 2, spp=(1, 4, 16))]
+    ds = db.DeviceSet("cpu", spp_weights=[1, 0, 3])
+    ds.add(scenes)
+    s = ds.draw(4000, 16, torch.Generator().manual_seed(3))["s"]
+    assert (s == 1).sum() == 0
+    assert abs((s == 2).float().mean().item() - 0.75) < 0.03
+    capped = db.DeviceSet("cpu", max_spp=4, spp_weights=[1, 1, 5])
+    capped.add(scenes)
+    assert set(capped.draw(256, 16, torch.Generator().manual_seed(3))["s"].tolist()) == {0, 1}
+    for bad in ([1, 1], [1, -1, 1], [0, 0, 0]):
+        with pytest.raises(ValueError, match="spp-weights"):
+            db.DeviceSet("cpu", spp_weights=bad).add(scenes)

@@ -236,7 +236,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
             + (f" from step {ck['dark_from_step']:,}" if ck.get("dark_from_step") else "")
             if hp.get("dark_weight") else "")
          + (f"; its last cycle drew noisy inputs of at most {hp['max_input_spp']} spp "
-            "(train --max-input-spp)" if hp.get("max_input_spp") else "") + " |"),
+            "(train --max-input-spp)" if hp.get("max_input_spp") else "")
+         + (f"; its last cycle drew the noisy spp in the shares {hp['spp_weights']} "
+            "(train --spp-weights)" if hp.get("spp_weights") else "") + " |"),
         f"| output | filters, not pixels: {recon['levels']} pyramid level(s)"
         + (f" (grown from {ck['levels_from'][1]} at step {ck['levels_from'][0]:,}: train.add_levels)"
            if ck.get("levels_from") else "")

@@ -300,7 +300,7 @@ class BatchSource:
                 raise SystemExit("--sampler device does not do Noise2Noise targets (--target-spp)")
             from ..device_batches import DeviceSet
 
-            self.set = DeviceSet(device, a.max_input_spp)
+            self.set = DeviceSet(device, a.max_input_spp, a.spp_weights)
             self.set.add(scenes)
             self.gen = torch.Generator(device).manual_seed(int(np.random.SeedSequence(seed).generate_state(1)[0]))
         elif a.workers > 0:
@@ -398,7 +398,7 @@ def hparams(a, world: int) -> dict:
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
             "mean_weight": a.mean_weight, "dark_weight": a.dark_weight, "target_spp": a.target_spp,
-            "max_input_spp": a.max_input_spp, "loss": a.loss,
+            "max_input_spp": a.max_input_spp, "spp_weights": a.spp_weights, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
 
@@ -677,6 +677,9 @@ def main(argv=None):
                          "spp; validation still covers every spp). Measured 2026-12-05 (64 "
                          "against 512-spp references): worse on the Cycles family at every spp, "
                          "most at 64 (docs/reconstruction.md, 'More cycles on new scenes')")
+    ap.add_argument("--spp-weights", type=lambda t: [float(x) for x in t.split(",")], default=None,
+                    help="--sampler device: the relative share of draws of each noisy spp, in the "
+                         "data set's order (e.g. 1,1,1,3,3 for 1,4,16,64,256); default: equal")
     ap.add_argument("--target-spp", type=int, default=0,
                     help="Noise2Noise: train against the reference render's prefix at this spp "
                          "(written by `temc-render dataset --ref-prefix-spp`); validation still "
@@ -711,6 +714,8 @@ def main(argv=None):
     a.loss = a.loss or ("relmse" if a.target_spp else "mix")
     if a.max_input_spp and a.sampler != "device":
         ap.error("--max-input-spp needs --sampler device")
+    if a.spp_weights and a.sampler != "device":
+        ap.error("--spp-weights needs --sampler device")
     f = train(a)
     print(f"done: {f['train_steps']} steps, {f['train_seconds']:.0f} CPU s + "
           f"{f['gpu_seconds']:.0f} GPU s -> {a.run}/model.pt")
