@@ -151,6 +151,19 @@ class Checkpoint:
         state = None if self.state is None else {**self.state, "opt_dropped": "weights averaged"}
         return replace(self, model=mean, opt=None, state=state)
 
+    def with_branch_time(self, start: "Checkpoint", *branches: "Checkpoint") -> "Checkpoint":
+        """This (averaged) checkpoint with the training time of every branch that `start`
+        grew into (this one's and each of `branches`): start's CPU and GPU seconds plus each
+        branch's own, so a mean of branches' ends counts all the compute behind it."""
+        state = dict(self.state)
+        for key in ("train_s", "gpu_seconds"):
+            base = start.state[key]
+            grown = [c.state[key] - base for c in (self, *branches)]
+            if min(grown) < 0:
+                raise ValueError(f"a branch has less {key} than its start")
+            state[key] = base + sum(grown)
+        return replace(self, state=state)
+
     # -- writing -----------------------------------------------------------------------
 
     def to_dict(self) -> dict:

@@ -220,3 +220,25 @@ def test_three_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
                                          atol=1e-6)
                           and torch.allclose(got.model[k], torch.ones_like(got.model[k]), atol=1e-2)
                           for k in params)
+
+
+def test_branch_ends_average_with_every_branch_s_training_time(tmp_path):
+    """drivers.average --branches: two runs from one start, averaged, count the start's
+    seconds once and each branch's own on top (the card's CPU hours); a 'branch' with less
+    time than its start is refused."""
+    from temc_train.drivers import average
+    seconds = {"end1": (30.0, 2.0), "end2": (25.0, 0.0), "start": (10.0, 0.0)}
+    for name, (cpu, gpu) in seconds.items():
+        m = tiny()
+        Checkpoint(model=m.state_dict(), arch="temc2", width=0.0625, dataset="tiny", opt=None,
+                   state={"step": int(cpu), "train_s": cpu, "gpu_seconds": gpu}
+                   ).write(str(tmp_path / f"{name}.pt"))
+    paths = [str(tmp_path / f"{n}.pt") for n in ("end1", "end2", "start")]
+    average.main(["--branches", *paths, str(tmp_path / "soup.pt")])
+    got = Checkpoint.read(str(tmp_path / "soup.pt"))
+    assert got.steps == 30 and got.state["train_s"] == 10.0 + 20.0 + 15.0
+    assert got.state["gpu_seconds"] == 2.0
+    average.main([*paths, str(tmp_path / "plain.pt")])
+    assert Checkpoint.read(str(tmp_path / "plain.pt")).state["train_s"] == 30.0
+    with pytest.raises(ValueError, match="less train_s"):
+        average.main(["--branches", paths[2], paths[0], str(tmp_path / "bad.pt")])

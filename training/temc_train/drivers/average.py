@@ -6,6 +6,12 @@ were made on 2026-12-05 (docs/reconstruction.md, "A second cycle, averaged"):
 
 END first: the result carries its steps, and the run's log continues from them. More than
 two average alike (snapshots along one cycle: `END.pt MID.pt START.pt OUT.pt`).
+
+`--branches`: the checkpoints before the last are ends of separate runs from the last one,
+their common start (a model soup, Wortsman et al. 2022). The result's CPU and GPU seconds
+are then the start's plus every branch's own, not the first end's alone:
+
+    python -m temc_train.drivers.average --branches END1.pt END2.pt START.pt OUT.pt
 """
 
 import argparse
@@ -19,8 +25,15 @@ def main(argv=None):
     ap.add_argument("others", nargs="+", metavar="other",
                     help="checkpoints of the same network to average with")
     ap.add_argument("out", help="where to write the averaged checkpoint")
+    ap.add_argument("--branches", action="store_true",
+                    help="the others but the last are ends of other runs from the last one; "
+                         "the result's training time sums every branch's")
     a = ap.parse_args(argv)
-    Checkpoint.read(a.first).averaged(*map(Checkpoint.read, a.others)).write(a.out)
+    others = [Checkpoint.read(p) for p in a.others]
+    mean = Checkpoint.read(a.first).averaged(*others)
+    if a.branches:
+        mean = mean.with_branch_time(others[-1], *others[:-1])
+    mean.write(a.out)
     print(f"wrote {a.out}: the mean of {a.first} and {', '.join(a.others)}")
 
 
