@@ -125,3 +125,15 @@ def test_spp_weights_set_each_spp_share_of_the_draws():
     for bad in ([1, 1], [1, -1, 1], [0, 0, 0]):
         with pytest.raises(ValueError, match="spp-weights"):
             db.DeviceSet("cpu", spp_weights=bad).add(scenes)
+
+
+def test_spp_weights_option_refuses_what_it_cannot_use(capsys):
+    """train --spp-weights: non-numbers and samplers without per-spp draws are refused with
+    the reason, before any training starts."""
+    from temc_train.drivers import train
+    for argv, why in ((["--spp-weights", "1,x", "--sampler", "device"], "comma-separated"),
+                      (["--spp-weights", "1,2"], "needs --sampler device")):
+        with pytest.raises(SystemExit):
+            train.main(["--data", "nowhere", "--arch", "temc2", "--width", "0.125", "--run-dir",
+                        "nowhere", *argv])
+        assert why in capsys.readouterr().err

@@ -605,6 +605,15 @@ def export_onnx(model, final: dict, path: str) -> None:
     print(f"exported {path} (onnxruntime vs PyTorch {diff:.1e})", flush=True)
 
 
+def spp_weights(text: str) -> list:
+    """--spp-weights' value: comma-separated numbers (DeviceSet checks them against the
+    data set's spp)."""
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not comma-separated numbers: {text!r}") from None
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
@@ -677,7 +686,7 @@ def main(argv=None):
                          "spp; validation still covers every spp). Measured 2026-12-05 (64 "
                          "against 512-spp references): worse on the Cycles family at every spp, "
                          "most at 64 (docs/reconstruction.md, 'More cycles on new scenes')")
-    ap.add_argument("--spp-weights", type=lambda t: [float(x) for x in t.split(",")], default=None,
+    ap.add_argument("--spp-weights", type=spp_weights, default=None,
                     help="--sampler device: the relative share of draws of each noisy spp, in the "
                          "data set's order (e.g. 1,1,1,3,3 for 1,4,16,64,256); default: equal")
     ap.add_argument("--target-spp", type=int, default=0,
