@@ -102,10 +102,10 @@ class DeviceSet:
     def __init__(self, device, max_spp: int = 0, spp_weights=None):
         self.device = torch.device(device)
         self.names, self.spp = [], None
-        # Noisy inputs drawn only up to this spp (0: all), and each spp's relative share of
-        # the draws (None: equal); see train.py's --max-input-spp and --spp-weights.
-        self.max_spp, self.allowed = max_spp, None
-        self.spp_weights, self.weights = spp_weights, None
+        # Noisy inputs drawn only up to this spp (0: all), each in its relative share of the
+        # draws (None: equal); see train.py's --max-input-spp and --spp-weights. `weights`
+        # stays None without either, so the draw keeps its old random stream.
+        self.max_spp, self.spp_weights, self.weights = max_spp, spp_weights, None
         self.planes = self.reference = self.scale = self.hw = None
 
     def __len__(self):
@@ -121,13 +121,8 @@ class DeviceSet:
         self.spp = self.spp or list(new[0].spp)
         if any(list(s.spp) != self.spp for s in new):
             raise ValueError(f"every scene needs the noisy spp {self.spp}")
-        if self.max_spp and self.allowed is None:
-            keep = [k for k, v in enumerate(self.spp) if v <= self.max_spp]
-            if not keep:
-                raise ValueError(f"no noisy spp of {self.spp} is at most {self.max_spp}")
-            self.allowed = torch.tensor(keep, device=self.device)
-        if self.spp_weights is not None and self.weights is None:
-            self.weights = self._weights(self.spp_weights)
+        if (self.max_spp or self.spp_weights is not None) and self.weights is None:
+            self.weights = self._weights()
         h = max([s.shape[0] for s in new] + ([self.planes.shape[2]] if self.names else []))
         w = max([s.shape[1] for s in new] + ([self.planes.shape[3]] if self.names else []))
         planes = np.stack([_pad(np.stack([_planes(s, i) for i in range(len(self.spp))]), h, w) for s in new])
@@ -145,13 +140,16 @@ class DeviceSet:
         self.min_side = int(self.hw.min())  # kept here: reading it per batch syncs the GPU
         return len(new)
 
-    def _weights(self, w) -> torch.Tensor:
-        """The draw's weight per noisy spp (zero above max_spp), checked against the spp list."""
-        w = [float(x) for x in w]
+    def _weights(self) -> torch.Tensor:
+        """The draw's weight per noisy spp (spp_weights or equal, zero above max_spp),
+        checked against the spp list."""
+        w = [1.0] * len(self.spp) if self.spp_weights is None else [float(x) for x in self.spp_weights]
         if len(w) != len(self.spp) or min(w) < 0:
             raise ValueError(f"--spp-weights needs {len(self.spp)} weights >= 0 "
                              f"(for spp {self.spp}), got {w}")
         if self.max_spp:
+            if all(v > self.max_spp for v in self.spp):
+                raise ValueError(f"no noisy spp of {self.spp} is at most {self.max_spp}")
             w = [x if v <= self.max_spp else 0.0 for x, v in zip(w, self.spp)]
         if sum(w) <= 0:
             raise ValueError(f"--spp-weights {w} draws no noisy input")
@@ -172,12 +170,10 @@ class DeviceSet:
         hw = self.hw[i]
         spin = torch.where((u() < 0.5)[:, None, None], random_rotations(n, gen, dev),
                            torch.eye(3, device=dev).expand(n, 3, 3))
-        if self.weights is not None:
-            s = torch.multinomial(self.weights, n, replacement=True, generator=gen)
-        elif self.allowed is None:
+        if self.weights is None:
             s = torch.randint(len(self.spp), (n,), generator=gen, device=dev)
         else:
-            s = self.allowed[torch.randint(len(self.allowed), (n,), generator=gen, device=dev)]
+            s = torch.multinomial(self.weights, n, replacement=True, generator=gen)
         return {"i": i, "s": s, "c": c,
                 "y0": (u() * (hw[:, 0] - c + 1)).long(), "x0": (u() * (hw[:, 1] - c + 1)).long(),
                 "flip": u() < 0.5, "k": torch.randint(4, (n,), generator=gen, device=dev),
