@@ -614,7 +614,9 @@ def spp_weights(text: str) -> list:
         raise argparse.ArgumentTypeError(f"not comma-separated numbers: {text!r}") from None
 
 
-def main(argv=None):
+def arg_parser() -> argparse.ArgumentParser:
+    """train.py's command line (apart from main, so a test can read a script's flags as
+    a run would: tests/test_train_all.py)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--data", help="a temc-render dataset folder")
@@ -719,6 +721,11 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--val-minutes", type=float, default=5.0)
     ap.add_argument("--save-minutes", type=float, default=5.0)
+    return ap
+
+
+def main(argv=None):
+    ap = arg_parser()
     a = ap.parse_args(argv)
     a.loss = a.loss or ("relmse" if a.target_spp else "mix")
     if a.max_input_spp and a.sampler != "device":
