@@ -51,7 +51,9 @@ def gpu_session_recipes():
     """(run, train.py arguments) of every scripts/train-gpu call in scripts/gpu-session, as
     train-gpu's `one` composes them: its common arguments, the network, then the extras."""
     text = script("gpu-session")
-    common = array(script("train-gpu"), "common")
+    train_gpu = script("train-gpu")
+    common = array(train_gpu, "common")
+    net = re.search(r'^\s*one "\$out" (--arch \S+ --width \S+)', train_gpu, re.M).group(1).split()
     l3_from = re.search(r"^l3_from=(\S+)", text, re.M).group(1)
     out = []
     for line in text.splitlines():
@@ -61,7 +63,7 @@ def gpu_session_recipes():
         at = words.index("--from")
         source = words[at + 1].replace("$l3_from", l3_from)
         flags = words[at + 2:]
-        out.append((os.path.basename(source), [*common, "--arch", "temc2", "--width", "0.125", *flags]))
+        out.append((os.path.basename(source), [*common, *net, *flags]))
     return out
 
 

@@ -616,7 +616,7 @@ def spp_weights(text: str) -> list:
 
 def arg_parser() -> argparse.ArgumentParser:
     """train.py's command line (apart from main, so a test can read a script's flags as
-    a run would: tests/test_train_all.py)."""
+    a run would: tests/test_run_recipes.py)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--data", help="a temc-render dataset folder")
