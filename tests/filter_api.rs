@@ -7,6 +7,7 @@ mod common;
 
 use common::{device, test_model as model_file};
 use temc::color;
+use temc::engine::PLAN_CACHE_SIZES;
 use temc::filter::{filter_type_for, Filter, Quality};
 use temc::Error;
 
@@ -352,4 +353,69 @@ fn recommit_with_the_same_weights_reuses_the_model() {
     f.set_weights(&weights());
     f.commit().unwrap();
     assert!(!std::sync::Arc::ptr_eq(&first, f.model().unwrap()));
+}
+
+#[test]
+fn a_resizing_host_keeps_a_bounded_number_of_plans() {
+    let dev = device(1);
+    let sizes: Vec<usize> = (1..=PLAN_CACHE_SIZES + 2).map(|k| 32 * k).collect();
+    let images: Vec<Vec<f32>> = sizes.iter().map(|&s| image(s, s)).collect();
+    let mut f = Filter::new(&dev, "TEMC2").unwrap();
+    f.set_weights(&weights());
+    for (&s, color) in sizes.iter().zip(&images) {
+        f.set_input_f32("color", color, s, s).unwrap();
+        f.commit().unwrap();
+        f.execute_to_vec().unwrap();
+        let kept = f.model().unwrap().cached_sizes();
+        assert!(kept.len() <= PLAN_CACHE_SIZES, "{kept:?}");
+        assert!(kept.iter().any(|&(h, w)| h >= s && w >= s), "{s}: {kept:?}");
+    }
+    let kept = f.model().unwrap().cached_sizes();
+    assert_eq!(kept.len(), PLAN_CACHE_SIZES, "{kept:?}");
+    assert!(
+        kept.iter().all(|&(h, _)| h > 32),
+        "the first size, least recently used, was dropped: {kept:?}"
+    );
+}
+
+/// The resident memory of this process in MB (Linux) once the allocator has returned what
+/// it can, so that what is left is what is held, for the measurement below.
+fn rss_mb() -> Option<f64> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap memory to the system.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? / 1024.0)
+}
+
+/// A host that resizes its viewport: one filter with the built-in balanced model,
+/// recommitted for 16 image sizes in turn, then the first four again. Prints each size's
+/// execute time and the memory the process holds; docs/memory.md, "A host that resizes",
+/// quotes it. `cargo test --release --test filter_api -- --ignored --nocapture resizing`
+#[test]
+#[ignore = "a measurement: run it with --nocapture"]
+fn resizing_host_memory() {
+    let dev = device(1);
+    let sizes: Vec<usize> = (0..16)
+        .map(|k| 160 + 32 * k)
+        .chain((0..4).map(|k| 160 + 32 * k))
+        .collect();
+    let images: Vec<Vec<f32>> = sizes.iter().map(|&s| image(s, s)).collect();
+    let mut f = Filter::new(&dev, "TEMC2").unwrap();
+    for (i, (&s, color)) in sizes.iter().zip(&images).enumerate() {
+        f.set_input_f32("color", color, s, s).unwrap();
+        f.commit().unwrap();
+        let t = std::time::Instant::now();
+        let (out, _) = f.execute_to_vec().unwrap();
+        assert!(out.iter().all(|v| v.is_finite()));
+        let plans = f.model().map_or(0, |m| m.cached_sizes().len());
+        println!(
+            "run {i:2}: {s}x{s}, {:.3} s, {plans} plan(s) cached, resident {:.0} MB",
+            t.elapsed().as_secs_f64(),
+            rss_mb().unwrap_or(f64::NAN)
+        );
+    }
 }

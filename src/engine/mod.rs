@@ -3,12 +3,15 @@
 //! tract plans built for symbolic H x W either fail to load or run several times slower
 //! (no direct convolution without concrete shapes, see docs/tract-vs-onnxruntime.md), while
 //! a concrete plan builds in milliseconds to a few hundred. So a [`Model`] keeps the parsed
-//! graph and builds one optimised plan per (H, W) on first use; plans are shared between
-//! threads (`Arc`), and each run gets its own state.
+//! graph and builds one optimised plan per (H, W) on first use, keeping the most recently
+//! used few ([`PLAN_CACHE_SIZES`]); plans are shared between threads (`Arc`), and each run
+//! gets its own state.
 
 mod metadata;
+mod plan_cache;
 
 pub use metadata::{ModelInfo, AUX_BUFFERS, AUX_LAYOUT, FORMAT_VERSION};
+pub use plan_cache::PLAN_CACHE_SIZES;
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -17,6 +20,7 @@ use std::sync::{Arc, Mutex};
 use tract_onnx::prelude::*;
 
 use crate::Error;
+use plan_cache::PlanCache;
 
 /// Names of the graph's inputs, in the order [`Model::run`] takes them.
 pub const INPUT_NAMES: [&str; 3] = ["chroma", "luma", "aux"];
@@ -47,7 +51,7 @@ pub struct Model {
     input_order: [usize; 3],
     /// Position of level l's filters among the graph's outputs.
     output_order: Vec<usize>,
-    plans: Mutex<HashMap<(usize, usize), Arc<Plan>>>,
+    plans: Mutex<PlanCache<Plan>>,
     memory: std::sync::OnceLock<(f64, f64)>,
 }
 
@@ -183,7 +187,7 @@ impl Model {
             graph,
             input_order,
             output_order,
-            plans: Mutex::new(HashMap::new()),
+            plans: Mutex::new(PlanCache::new()),
             memory: std::sync::OnceLock::new(),
         })
     }
@@ -204,25 +208,23 @@ impl Model {
         Ok(())
     }
 
-    /// The optimised plan for H x W, built on first use and cached.
+    /// The optimised plan for H x W, built on first use and cached (the least recently used
+    /// of more than [`PLAN_CACHE_SIZES`] sizes is dropped).
     pub fn plan(&self, h: usize, w: usize) -> Result<Arc<Plan>, Error> {
         self.check_size(h, w)?;
-        if let Some(p) = self
-            .plans
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(&(h, w))
-        {
-            return Ok(p.clone());
+        if let Some(p) = self.cache().get((h, w)) {
+            return Ok(p);
         }
         // Built outside the lock: other sizes must not wait for this one. Two threads that
         // race on the same new size both build it; the second insert wins, both are valid.
         let plan = Arc::new(self.build_plan(h, w)?);
-        self.plans
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert((h, w), plan.clone());
+        self.cache().insert((h, w), plan.clone());
         Ok(plan)
+    }
+
+    fn cache(&self) -> std::sync::MutexGuard<'_, PlanCache<Plan>> {
+        // Every update is one map operation, so a poisoned lock is still consistent.
+        self.plans.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// The memory one run needs, as `(weight bytes, activation bytes per pixel)`: weights
@@ -249,8 +251,12 @@ impl Model {
 
     /// (constant bytes, peak live activation bytes) of the plan for an s x s tile.
     fn plan_bytes(&self, s: usize) -> Result<(f64, f64), Error> {
-        let was_cached = self.cached_sizes().contains(&(s, s));
-        let plan = self.plan(s, s)?;
+        // A plan built only for measuring is not kept: it would push out one in use.
+        let cached = self.cache().get((s, s));
+        let plan = match cached {
+            Some(p) => p,
+            None => Arc::new(self.build_plan(s, s)?),
+        };
         let model = plan.model();
         let bytes = |n: usize| -> f64 {
             model
@@ -299,27 +305,13 @@ impl Model {
                 live -= bytes(f);
             }
         }
-        // A plan built only for measuring is not kept.
-        if !was_cached {
-            self.plans
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .remove(&(s, s));
-        }
         Ok((consts, peak))
     }
 
-    /// The sizes whose plans are cached.
+    /// The sizes whose plans are cached: at most [`PLAN_CACHE_SIZES`], the most recently
+    /// used.
     pub fn cached_sizes(&self) -> Vec<(usize, usize)> {
-        let mut v: Vec<_> = self
-            .plans
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .keys()
-            .copied()
-            .collect();
-        v.sort_unstable();
-        v
+        self.cache().sizes()
     }
 
     fn build_plan(&self, h: usize, w: usize) -> Result<Plan, Error> {
