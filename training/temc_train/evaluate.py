@@ -9,6 +9,9 @@ Metrics (all against the reference render):
 - Delta E ITP (ITU-R BT.2124): ICtCp from the PQ-encoded Rec.2020 LMS, at 100 cd/m^2 per
   unit after the automatic exposure; the chroma error the paper's colour split targets.
 - mean/ref: the image's mean over the reference's mean (energy kept: 1).
+- RelMSE-net (where the data set keeps a prefix of each reference): RelMSE with the
+  reference's own noise subtracted (relmse_net), for references whose noise is not far
+  below a denoiser's error (512 spp against 64-spp inputs).
 """
 
 import json
@@ -35,6 +38,32 @@ M2020_LMS = np.array([[1688, 2146, 262], [683, 2951, 462], [99, 309, 3688]]) / 4
 
 def relmse(x, r):
     return float(np.mean((x - r) ** 2 / (r * r + EPS)))
+
+
+def reference_variance(ref, prefix, ref_spp, prefix_spp):
+    """Per pixel and channel, the variance of the reference's own noise, from the render of
+    its first `prefix_spp` samples (temc-render's `--ref-prefix-spp`). With k prefix samples
+    of n, ref - prefix = (n - k) / n (rest - prefix), whose expected square is
+    sigma^2 (n - k) / (n k); the reference's variance is sigma^2 / n, so it is that square
+    times k / (n - k). One pair per pixel: unbiased, noisy pixel by pixel, steady in a mean
+    over an image."""
+    k, n = prefix_spp, ref_spp
+    if not 0 < k < n:
+        raise ValueError(f"a prefix of {k} samples of a {n}-sample reference")
+    return (ref - prefix) ** 2 * (k / (n - k))
+
+
+def relmse_net(x, r, ref_var):
+    """RelMSE with the reference's own noise taken out. For a reference independent of `x`
+    (temc-render gives it its own seed), E[(x - r)^2] = (x - truth)^2 + var(r), so
+    subtracting `ref_var` (reference_variance) leaves x's own error, in RelMSE's units.
+    May come out at or below zero where x is closer to the truth than the reference is."""
+    return float(np.mean(((x - r) ** 2 - ref_var) / (r * r + EPS)))
+
+
+def reference_relmse(r, ref_var):
+    """The reference's own RelMSE against the truth: what relmse_net takes out."""
+    return float(np.mean(ref_var / (r * r + EPS)))
 
 
 def smape(x, r):

@@ -190,3 +190,30 @@ def test_pfm_round_trip(tmp_path):
     ev.write_pfm(tmp_path / "g.pfm", grey)
     assert np.array_equal(ev.read_pfm(tmp_path / "c.pfm"), rgb)
     assert np.array_equal(ev.read_pfm(tmp_path / "g.pfm")[..., 0], grey)
+
+
+def test_reference_variance_and_net_relmse_recover_the_truth():
+    # Per-pixel samples around a known truth: the reference is the mean of n samples, its
+    # prefix the mean of the first k, and the estimate must give the reference's
+    # variance sigma^2 / n in the mean over pixels; the net RelMSE of the truth itself is
+    # then about zero while its plain RelMSE is the reference's own error.
+    rng = np.random.default_rng(7)
+    h, w, n, k = 256, 256, 512, 64
+    truth = np.full((h, w, 3), 2.0)
+    sigma = 1.5
+    # The means of the first k samples and of the other n - k, drawn as such.
+    prefix = truth + sigma / np.sqrt(k) * rng.standard_normal(truth.shape)
+    rest = truth + sigma / np.sqrt(n - k) * rng.standard_normal(truth.shape)
+    ref = (k * prefix + (n - k) * rest) / n
+    var = ev.reference_variance(ref, prefix, n, k)
+    assert np.mean(var) == pytest.approx(sigma**2 / n, rel=0.05)
+    denom = ref * ref + ev.EPS
+    own = float(np.mean((truth - ref) ** 2 / denom))
+    assert ev.reference_relmse(ref, var) == pytest.approx(own, rel=0.05)
+    assert ev.relmse(truth, ref) == pytest.approx(own, rel=1e-9)
+    assert abs(ev.relmse_net(truth, ref, var)) < 0.05 * own
+    # An estimate with its own error keeps that error, not the reference's on top.
+    x = truth + 0.05 * rng.standard_normal(truth.shape)
+    assert ev.relmse_net(x, ref, var) == pytest.approx(np.mean((x - truth) ** 2 / denom), rel=0.05)
+    with pytest.raises(ValueError):
+        ev.reference_variance(ref, prefix, n, n)

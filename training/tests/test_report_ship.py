@@ -207,7 +207,7 @@ def test_report_sections_from_the_committed_measurements_match_the_docs():
     root = os.path.join(os.path.dirname(__file__), "..", "..", "docs")
     with open(os.path.join(root, "img", "accuracy", "measurements.csv")) as f:
         rows = [{k: (v if k in ("scene", "denoiser") else int(v) if k == "spp" else float(v))
-                 for k, v in r.items()} for r in csv.DictReader(f)]
+                 for k, v in r.items() if v != ""} for r in csv.DictReader(f)]
     with open(os.path.join(root, "img", "accuracy", "aux-modes.csv")) as f:
         aux_rows = [{k: (v if k in ("scene", "denoiser", "aux") else float(v)) for k, v in r.items()}
                     for r in csv.DictReader(f)]
@@ -218,7 +218,9 @@ def test_report_sections_from_the_committed_measurements_match_the_docs():
     denoisers = list(dict.fromkeys(r["denoiser"] for r in rows))
     labels = [d for d in denoisers if d not in ("noisy", *report.OIDN)]
     body = (report.targets(denoisers, spps, m.values, m.geomean, m.mean)
-            + report.family_section(m, denoisers, spps) + report.verdict_section(m, spps, labels)
+            + report.family_section(m, denoisers, spps)
+            + report.reference_noise_section(m, denoisers, spps)
+            + report.verdict_section(m, spps, labels)
             + report.per_scene_section(m, denoisers, spps, scenes)
             + report.border_section(m, denoisers, spps) + report.dark_section(m, denoisers, spps)
             + report.spp_tables(m, denoisers, spps) + report.error_vs_time_section(m, denoisers, spps))
@@ -456,3 +458,41 @@ def test_dark_section_gives_the_geometric_mean_ratio_and_the_worst_scene():
     assert md[-2] == "| temc | 4.00x (b 8.00x) |"  # sqrt(2 x 8)
     assert report.dark_section(report.Means([{k: v for k, v in r.items() if k != "dark RelMSE"}
                                              for r in rows]), ["temc", "OIDN high"], [4]) == []
+
+
+def test_a_reference_prefix_gives_net_relmse_and_its_section(tmp_path):
+    # One scene whose data set keeps the reference's first 64 of 512 samples: its rows get
+    # RelMSE-net and the reference's own RelMSE, and the section reports the ratios.
+    rng = np.random.default_rng(5)
+    d = tmp_path / "test" / "holdout-window-000"
+    d.mkdir(parents=True)
+    img, ref = fake_scene(rng, 0.5)
+    write_exr(d / "spp0004.exr", img)
+    write_exr(d / "ref.exr", ref)
+    prefix = {**ref, "color": (ref["color"] * rng.exponential(1.0, ref["color"].shape) ** 0.1)
+              .astype(np.float32)}
+    write_exr(d / "ref-spp0064.exr", prefix)
+    rec = {"name": "holdout-window-000", "dir": "test/holdout-window-000",
+           "noisy": [[4, "spp0004.exr"]], "reference": "ref.exr",
+           "reference_prefixes": [[64, "ref-spp0064.exr"]], "ref_spp": 512, "seconds_noisy": 1.0}
+    runs = {LABEL: fake_temc, "OIDN high": fake_oidn("high")}
+    rows, _, _ = report.measure_scene(rec, str(tmp_path), runs, None)
+    var = ev.reference_variance(ref["color"], prefix["color"], 512, 64)
+    for r in rows:
+        assert r["ref RelMSE"] == pytest.approx(ev.reference_relmse(ref["color"], var))
+        assert r["RelMSE-net"] == pytest.approx(r["RelMSE"] - r["ref RelMSE"], rel=1e-4)
+    m = report.Means(rows)
+    md = report.reference_noise_section(m, ["noisy", LABEL, "OIDN high"], [4])
+    assert md[0] == "## RelMSE with each reference's own noise subtracted"
+    got = [l for l in md if l.startswith(f"| {LABEL} | held-out families")]
+    assert len(got) == 1
+    net = m.geomean(LABEL, 4, "RelMSE-net") / m.geomean("OIDN high", 4, "RelMSE-net")
+    assert f"| {net:.2f}x |" in got[0]
+    # Without prefixes (the fixture's data set, the Cycles family) there is no section.
+    assert report.reference_noise_section(report.Means([{k: v for k, v in r.items()
+                                                          if k != "RelMSE-net"} for r in rows]),
+                                          ["noisy", LABEL, "OIDN high"], [4]) == []
+
+
+def test_the_fixture_report_has_no_reference_noise_section(reported):
+    assert "## RelMSE with each reference's own noise subtracted" not in reported.md

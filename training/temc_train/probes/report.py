@@ -217,6 +217,48 @@ def family_section(m, denoisers, spps) -> list:
     return md + [""]
 
 
+def reference_noise_section(m, denoisers, spps) -> list:
+    """The targets' RelMSE ratios once more with each reference's own noise subtracted
+    (RelMSE-net), for all test scenes and per kind: 512-spp references are noisy enough to
+    hide part of a denoiser's error at 64 spp (issue 36, item 4). Empty where the data set
+    keeps no reference prefixes."""
+    if not any("RelMSE-net" in r for r in m.rows):
+        return []
+    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
+    md = ["## RelMSE with each reference's own noise subtracted", "",
+          "A reference of 512 spp carries noise of its own, and RelMSE against it counts that "
+          "noise as the denoiser's error: E[(x - ref)^2] = (x - truth)^2 + var(ref) for a "
+          "reference rendered with its own seed. var(ref) per pixel comes from the reference's "
+          "first 64 samples, which the data set keeps (evaluate.reference_variance); "
+          "'noise removed' is the geometric-mean RelMSE ratio to OIDN high after subtracting "
+          "it (evaluate.relmse_net). 'Reference / OIDN' is the reference's own RelMSE over "
+          "OIDN high's: near 1, the reference is about as far from the truth as OIDN is. A "
+          "scene's net value at or below zero (the denoiser closer to the truth than the "
+          "reference; counted in the last column, the model's / OIDN's) enters the geometric "
+          "mean as 1e-12.", "",
+          "| model | scenes | n | spp | RelMSE / OIDN | noise removed | reference / OIDN | net <= 0 |",
+          "|---|---|---:|---:|---:|---:|---:|---:|"]
+    kinds = [("all test scenes", "")] + [(label, prefix) for label, prefix in FAMILIES]
+    for label, prefix in kinds:
+        sub = Means([r for r in m.rows if r["scene"].startswith(prefix) and "RelMSE-net" in r])
+        n_scenes = len({r["scene"] for r in sub.rows})
+        if not n_scenes:
+            continue
+        for n in ours:
+            for spp, _, _ in TARGETS:
+                if spp not in spps:
+                    continue
+                oidn = sub.geomean("OIDN high", spp, "RelMSE")
+                raw = sub.geomean(n, spp, "RelMSE") / oidn
+                net = sub.geomean(n, spp, "RelMSE-net") / sub.geomean("OIDN high", spp, "RelMSE-net")
+                floor = sub.geomean(n, spp, "ref RelMSE") / oidn
+                low = "/".join(str(sum(v <= 0 for v in sub.values(name, spp, "RelMSE-net")))
+                               for name in (n, "OIDN high"))
+                md.append(f"| {n} | {label} | {n_scenes} | {spp} | {raw:.2f}x | {net:.2f}x | "
+                          f"{floor:.2f} | {low} |")
+    return md + [""]
+
+
 class Means:
     """The report's averages over the test scenes of one denoiser at one spp."""
 
@@ -272,6 +314,7 @@ def measure_scene(rec, root, denoisers, aux):
     model whose aux modes are compared, or None."""
     d = os.path.join(root, rec["dir"])
     ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
+    ref_var = reference_noise(d, rec, ref)
     max_spp = max(s for s, _ in rec["noisy"])
     rows, aux_rows, strip = [], [], None
     for spp, fname in rec["noisy"]:
@@ -285,11 +328,26 @@ def measure_scene(rec, root, denoisers, aux):
                          "render_s": render_s, "denoise_s": secs, **ev.all_metrics(img, ref),
                          "border/ref": ev.border_ratio(img, ref),
                          "dark RelMSE": ev.dark_relmse(img, ref)})
+            if ref_var is not None:
+                rows[-1].update({"RelMSE-net": ev.relmse_net(img, ref, ref_var),
+                                 "ref RelMSE": ev.reference_relmse(ref, ref_var)})
         if spp == 16:
             strip = (outs, ref)
             if aux:
                 aux_rows += measure_aux_modes(rec["name"], path, layers, ref, outs, aux, denoisers)
     return rows, aux_rows, strip
+
+
+def reference_noise(d, rec, ref):
+    """The per-pixel variance of the scene's reference (evaluate.reference_variance) from
+    the data set's reference prefix, or None where it keeps none (the Cycles family's
+    8192-spp references have no prefix)."""
+    prefixes = rec.get("reference_prefixes") or []
+    if not prefixes or not rec.get("ref_spp"):
+        return None
+    k, fname = prefixes[0]
+    prefix = ev.read_exr(os.path.join(d, fname))["color"]
+    return ev.reference_variance(ref, prefix, rec["ref_spp"], k)
 
 
 def measure_aux_modes(scene, path, layers, ref, outs, aux, denoisers):
@@ -330,7 +388,9 @@ def timings(bench, threads, size, oidn_time):
 
 def write_csv(path, rows):
     with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        # Every key of every row: scenes with a reference prefix add RelMSE-net.
+        keys = list(dict.fromkeys(k for r in rows for k in r))
+        w = csv.DictWriter(f, fieldnames=keys, restval="")
         w.writeheader()
         w.writerows(rows)
 
@@ -589,7 +649,8 @@ def markdown(m, tests, manifest, denoisers, labels, threads, where, extra, page=
     scenes = [r["name"] for r in tests]
     return (header(tests, manifest, threads, where, page)
             + targets(denoisers, spps, m.values, m.geomean, m.mean)
-            + family_section(m, denoisers, spps) + verdict_section(m, spps, labels)
+            + family_section(m, denoisers, spps) + reference_noise_section(m, denoisers, spps)
+            + verdict_section(m, spps, labels)
             + per_scene_section(m, denoisers, spps, scenes) + border_section(m, denoisers, spps)
             + dark_section(m, denoisers, spps) + spp_tables(m, denoisers, spps) + error_vs_time_section(m, denoisers, spps, page["img"])
             + extra)
@@ -634,7 +695,9 @@ def read_test_scenes(root, generated=None):
     scene, and the first `generated` (all when None) of the generator's seeds by index."""
     with open(os.path.join(root, "manifest.json")) as f:
         manifest = json.load(f)
-    tests = [r for r in manifest["scenes"] if r["split"] == "test"]
+    # Each record carries the reference's sample count, for its prefix (reference_noise).
+    ref_spp = manifest.get("options", {}).get("ref_spp")
+    tests = [dict(r, ref_spp=ref_spp) for r in manifest["scenes"] if r["split"] == "test"]
     seeds = sorted((r for r in tests if r["name"].startswith("scene-")), key=lambda r: r["name"])
     keep = {r["name"] for r in seeds[:generated]}
     tests = [r for r in tests if not r["name"].startswith("scene-") or r["name"] in keep]
