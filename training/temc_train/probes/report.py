@@ -194,7 +194,6 @@ FAMILIES = (("hand-written scenes (named-*: not made by the generator)", "named-
 def family_section(m, denoisers, spps) -> list:
     """The targets' ratios to OIDN high again, per kind of test scene: a model that has
     learnt its generator rather than denoising wins on the last and not on the first two."""
-    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
     if not any(r["scene"].startswith(prefix) for r in m.rows for _, prefix in FAMILIES):
         return []  # another renderer's family: no scene is of these kinds
     md = ["## Targets per kind of test scene", "",
@@ -203,18 +202,23 @@ def family_section(m, denoisers, spps) -> list:
           "has their layout or lighting) and held-out seeds of the family trained on.", "",
           "| model | scenes | n | spp | RelMSE / OIDN | dE ITP / OIDN | worst mean error |",
           "|---|---|---:|---:|---:|---:|---:|"]
-    for label, prefix in FAMILIES:
-        sub = Means([r for r in m.rows if r["scene"].startswith(prefix)])
-        n_scenes = len({r["scene"] for r in sub.rows})
-        if not n_scenes:
-            continue
-        for n in ours:
-            for spp, _, _ in TARGETS:
-                if spp not in spps:
-                    continue
-                r, d, worst = vs_oidn(sub.values, sub.geomean, sub.mean, n, spp)
-                md.append(f"| {n} | {label} | {n_scenes} | {spp} | {r:.2f}x | {d:.2f}x | {100 * worst:.1f} % |")
+    for label, n_scenes, sub, n, spp in per_kind(m, denoisers, spps, FAMILIES):
+        r, d, worst = vs_oidn(sub.values, sub.geomean, sub.mean, n, spp)
+        md.append(f"| {n} | {label} | {n_scenes} | {spp} | {r:.2f}x | {d:.2f}x | {100 * worst:.1f} % |")
     return md + [""]
+
+
+def per_kind(m, denoisers, spps, kinds, keep=lambda row: True):
+    """The rows of a per-kind table: (kind's label, its scene count, its Means, temc model,
+    target spp) for each kind of test scene (label, name prefix) that has scenes among the
+    rows `keep` accepts."""
+    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
+    for label, prefix in kinds:
+        sub = Means([r for r in m.rows if r["scene"].startswith(prefix) and keep(r)])
+        n_scenes = len({r["scene"] for r in sub.rows})
+        for n in ours if n_scenes else ():
+            for spp in (s for s, _, _ in TARGETS if s in spps):
+                yield label, n_scenes, sub, n, spp
 
 
 def reference_noise_section(m, denoisers, spps) -> list:
@@ -224,7 +228,6 @@ def reference_noise_section(m, denoisers, spps) -> list:
     keeps no reference prefixes."""
     if not any("RelMSE-net" in r for r in m.rows):
         return []
-    ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
     md = ["## RelMSE with each reference's own noise subtracted", "",
           "A reference of 512 spp carries noise of its own, and RelMSE against it counts that "
           "noise as the denoiser's error: E[(x - ref)^2] = (x - truth)^2 + var(ref) for a "
@@ -238,24 +241,17 @@ def reference_noise_section(m, denoisers, spps) -> list:
           "mean as 1e-12.", "",
           "| model | scenes | n | spp | RelMSE / OIDN | noise removed | reference / OIDN | net <= 0 |",
           "|---|---|---:|---:|---:|---:|---:|---:|"]
-    kinds = [("all test scenes", "")] + [(label, prefix) for label, prefix in FAMILIES]
-    for label, prefix in kinds:
-        sub = Means([r for r in m.rows if r["scene"].startswith(prefix) and "RelMSE-net" in r])
-        n_scenes = len({r["scene"] for r in sub.rows})
-        if not n_scenes:
-            continue
-        for n in ours:
-            for spp, _, _ in TARGETS:
-                if spp not in spps:
-                    continue
-                oidn = sub.geomean("OIDN high", spp, "RelMSE")
-                raw = sub.geomean(n, spp, "RelMSE") / oidn
-                net = sub.geomean(n, spp, "RelMSE-net") / sub.geomean("OIDN high", spp, "RelMSE-net")
-                floor = sub.geomean(n, spp, "ref RelMSE") / oidn
-                low = "/".join(str(sum(v <= 0 for v in sub.values(name, spp, "RelMSE-net")))
-                               for name in (n, "OIDN high"))
-                md.append(f"| {n} | {label} | {n_scenes} | {spp} | {raw:.2f}x | {net:.2f}x | "
-                          f"{floor:.2f} | {low} |")
+    kinds = (("all test scenes", ""),) + FAMILIES
+    for label, n_scenes, sub, n, spp in per_kind(m, denoisers, spps, kinds,
+                                                 lambda row: "RelMSE-net" in row):
+        oidn = sub.geomean("OIDN high", spp, "RelMSE")
+        raw = sub.geomean(n, spp, "RelMSE") / oidn
+        net = sub.geomean(n, spp, "RelMSE-net") / sub.geomean("OIDN high", spp, "RelMSE-net")
+        floor = sub.geomean(n, spp, "ref RelMSE") / oidn
+        low = "/".join(str(sum(v <= 0 for v in sub.values(name, spp, "RelMSE-net")))
+                       for name in (n, "OIDN high"))
+        md.append(f"| {n} | {label} | {n_scenes} | {spp} | {raw:.2f}x | {net:.2f}x | "
+                  f"{floor:.2f} | {low} |")
     return md + [""]
 
 
