@@ -778,7 +778,9 @@ TEMC_API void temcCommitFilter(TEMCFilter filter);
 
 // Runs the filter, after the work queued on its device; returns when it is done. On
 // error nothing is written to the output. As OIDN's, the error reported is the queued
-// work's first, if it failed, else this execution's.
+// work's first, if it failed, else this execution's. The first run at an image size also
+// builds the network's plan for that size (about 0.1 s); the filter keeps the plans of
+// the four sizes it ran most recently.
 TEMC_API void temcExecuteFilter(TEMCFilter filter);
 
 // Queues an execution of the filter on its device and returns at once (an uncommitted

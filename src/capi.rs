@@ -1647,7 +1647,9 @@ pub extern "C" fn temcCommitFilter(filter: TEMCFilter) {
 
 /// Runs the filter, after the work queued on its device; returns when it is done. On
 /// error nothing is written to the output. As OIDN's, the error reported is the queued
-/// work's first, if it failed, else this execution's.
+/// work's first, if it failed, else this execution's. The first run at an image size also
+/// builds the network's plan for that size (about 0.1 s); the filter keeps the plans of
+/// the four sizes it ran most recently.
 #[no_mangle]
 pub extern "C" fn temcExecuteFilter(filter: TEMCFilter) {
     guarded((), |c| {
