@@ -1,0 +1,38 @@
+"""probes/reference_noise.py on a data set whose renders are Gaussian draws of known
+variance: every noisy input must come out at ref_spp / spp + 1 reference variances."""
+
+import json
+
+import numpy as np
+
+from temc_train.probes import reference_noise
+
+from test_data_train import fake_scene, write_exr
+
+
+def test_noisy_inputs_sit_at_the_expected_multiples_of_the_reference_noise(tmp_path):
+    rng = np.random.default_rng(11)
+    n, k, spps, sigma = 512, 64, (16, 64), 0.8
+    records = []
+    for i in range(2):
+        name = f"scene-{i:05}"
+        d = tmp_path / "test" / name
+        d.mkdir(parents=True)
+        _, clean = fake_scene(rng, 0.0)
+        truth = clean["color"].astype(np.float64)
+        draw = lambda s: truth + sigma / np.sqrt(s) * rng.standard_normal(truth.shape)  # noqa: E731
+        prefix, rest = draw(k), draw(n - k)
+        for fname, img in [("ref.exr", (k * prefix + (n - k) * rest) / n),
+                           ("ref-spp0064.exr", prefix)] + [(f"spp{s:04}.exr", draw(s)) for s in spps]:
+            write_exr(d / fname, {**clean, "color": img.astype(np.float32)})
+        records.append({"name": name, "split": "test", "dir": f"test/{name}", "reference": "ref.exr",
+                        "noisy": [[s, f"spp{s:04}.exr"] for s in spps],
+                        "reference_prefixes": [[k, "ref-spp0064.exr"]]})
+    (tmp_path / "manifest.json").write_text(
+        json.dumps({"scenes": records, "options": {"ref_spp": n, "spp": list(spps)}}))
+    md = reference_noise.table(str(tmp_path))
+    assert md[0].startswith("| scene | sampling |") and "(expected 33)" in md[0]
+    for line in md[2:4]:
+        cells = [float(c) for c in line.strip("|").split("|")[3:]]
+        assert abs(cells[0] / 33 - 1) < 0.1 and abs(cells[1] / 9 - 1) < 0.1, line
+    assert md[-1].startswith("2 of 2 scenes within 25 %")
