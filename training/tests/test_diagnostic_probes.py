@@ -1,5 +1,6 @@
-"""probes/reference_noise.py on a data set whose renders are Gaussian draws of known
-variance: every noisy input must come out at ref_spp / spp + 1 reference variances."""
+"""The diagnostic probes: reference_noise.py on a data set whose renders are Gaussian draws
+of known variance (every noisy input must come out at ref_spp / spp + 1 reference
+variances), and worst_pixels.py on an image with one kept dot."""
 
 import json
 
@@ -36,3 +37,16 @@ def test_noisy_inputs_sit_at_the_expected_multiples_of_the_reference_noise(tmp_p
         cells = [float(c) for c in line.strip("|").split("|")[3:]]
         assert abs(cells[0] / 33 - 1) < 0.1 and abs(cells[1] / 9 - 1) < 0.1, line
     assert md[-1].startswith("2 of 2 scenes within 25 %")
+
+
+def test_worst_pixels_finds_a_kept_firefly():
+    from temc_train import evaluate as ev
+    from temc_train.probes import worst_pixels
+
+    rng = np.random.default_rng(2)
+    ref = rng.uniform(0.2, 0.4, (16, 12, 3))
+    x = ref * rng.uniform(0.95, 1.05, ref.shape)
+    x[5, 7] = 30.0  # a dot the reconstruction kept
+    assert abs(worst_pixels.pixel_errors(x, ref).mean() - ev.relmse(x, ref)) < 1e-12
+    (pixel, share), *_ = worst_pixels.worst(x, ref, 3)
+    assert pixel == (5, 7) and share > 0.99
