@@ -229,10 +229,10 @@ def reference_noise_section(m, denoisers, spps) -> list:
     if not any("RelMSE-net" in r for r in m.rows):
         return []
     md = ["## RelMSE with each reference's own noise subtracted", "",
-          "A reference of 512 spp carries noise of its own, and RelMSE against it counts that "
+          "A reference carries noise of its own, and RelMSE against it counts that "
           "noise as the denoiser's error: E[(x - ref)^2] = (x - truth)^2 + var(ref) for a "
-          "reference rendered with its own seed. var(ref) per pixel comes from the reference's "
-          "first 64 samples, which the data set keeps (evaluate.reference_variance); "
+          "reference rendered with its own seed. var(ref) per pixel comes from a render of the "
+          "reference's first samples, which the data set keeps (evaluate.reference_variance); "
           "'noise removed' is the geometric-mean RelMSE ratio to OIDN high after subtracting "
           "it (evaluate.relmse_net). 'Reference / OIDN' is the reference's own RelMSE over "
           "OIDN high's: near 1, the reference is about as far from the truth as OIDN is. A "
