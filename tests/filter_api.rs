@@ -393,7 +393,7 @@ fn rss_mb() -> Option<f64> {
 
 /// A host that resizes its viewport: one filter with the built-in balanced model,
 /// recommitted for 16 image sizes in turn, then the first four again. Prints each size's
-/// execute time and the memory the process holds; docs/memory.md, "A host that resizes",
+/// execute time and the memory the process holds; docs/speed.md, "A host that resizes",
 /// quotes it. `cargo test --release --test filter_api -- --ignored --nocapture resizing`
 #[test]
 #[ignore = "a measurement: run it with --nocapture"]

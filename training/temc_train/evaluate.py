@@ -36,8 +36,13 @@ M709_2020 = np.array([[0.6274039, 0.3292830, 0.0433131],
 M2020_LMS = np.array([[1688, 2146, 262], [683, 2951, 462], [99, 309, 3688]]) / 4096.0
 
 
+def relmse_terms(x, r):
+    """RelMSE's terms, one per pixel and channel: relmse is their mean."""
+    return (x - r) ** 2 / (r * r + EPS)
+
+
 def relmse(x, r):
-    return float(np.mean((x - r) ** 2 / (r * r + EPS)))
+    return float(np.mean(relmse_terms(x, r)))
 
 
 def reference_variance(ref, prefix, ref_spp, prefix_spp):

@@ -13,13 +13,12 @@ Prints a Markdown table (docs/render.md quotes it).
 """
 
 import argparse
-import json
 import os
 
 import numpy as np
 
 from .. import evaluate as ev
-from .report import reference_noise
+from .report import read_test_scenes, reference_noise
 
 
 def scene_row(root: str, record: dict):
@@ -36,17 +35,14 @@ def scene_row(root: str, record: dict):
     return record["name"], record.get("sampling", "default"), own, ratios
 
 
-def table(root: str, split: str = "test") -> list:
-    """The Markdown table of scene_row over the split's finished scenes, and a closing line
-    with the share of scenes within 25 % of the expected ratio at every spp."""
-    with open(os.path.join(root, "manifest.json")) as f:
-        manifest = json.load(f)
+def table(root: str) -> list:
+    """The Markdown table of scene_row over the test split's finished scenes, and a closing
+    line with the share of scenes within 25 % of the expected ratio at every spp."""
+    manifest, tests = read_test_scenes(root)
     ref_spp = manifest["options"]["ref_spp"]
-    rows = [scene_row(root, dict(r, ref_spp=ref_spp)) for r in manifest["scenes"]
-            if r["split"] == split]
-    rows = [r for r in rows if r]
+    rows = [r for r in (scene_row(root, rec) for rec in tests) if r]
     if not rows:
-        raise SystemExit(f"no {split} scene with a reference prefix in {root}")
+        raise SystemExit(f"no test scene with a reference prefix in {root}")
     spps = sorted(rows[0][3])
     expect = {s: ref_spp / s + 1 for s in spps}
     md = ["| scene | sampling | reference's own RelMSE | "
@@ -67,9 +63,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True, help="a temc-render data set with reference prefixes")
-    ap.add_argument("--split", default="test")
     a = ap.parse_args(argv)
-    print("\n".join(table(a.data, a.split)))
+    print("\n".join(table(a.data)))
 
 
 if __name__ == "__main__":
