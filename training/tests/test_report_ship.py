@@ -331,7 +331,8 @@ def test_card_says_how_the_training_set_grew_and_what_the_last_session_had():
     assert ship.scenes_seen({"train_scenes": 40, "first_train_scenes": 40}, {"train": 40}) == \
         "the run trained on 40 training scenes"
     part = ship.scenes_seen({"train_scenes": 779, "session_scenes": 120}, {"train": 779})
-    assert part.endswith("its last session trained on the 120 rendered on its machine")
+    assert part == ("the largest training set one of its sessions saw held 779 scenes; its last "
+                    "session trained on the 120 rendered on its machine")
     assert ship.scenes_seen({"train_scenes": 40}, {"train": 50}).endswith("(the set was still rendering)")
 
 
@@ -355,8 +356,8 @@ def test_card_names_both_sets_when_the_last_session_trained_elsewhere():
     ck = {"dataset": "cpu-l3-scenes", "train_scenes": 779, "session_scenes": 107}
     assert ship.data_row(ck, here) == (
         "| data | last trained on cpu-l3-scenes (rendered on its training machine, not in git); "
-        "the run trained on 779 training scenes; its last session trained on the 107 rendered on "
-        "its machine; measured on spectral-v2: its test split, 140 scenes |")
+        "the largest training set one of its sessions saw held 779 scenes; its last session "
+        "trained on the 107 rendered on its machine; measured on spectral-v2: its test split, 140 scenes |")
     same = dict(ck, dataset="spectral-v2")
     assert ship.data_row(same, here).startswith("| data | spectral-v2, as it stands now: its test split")
 

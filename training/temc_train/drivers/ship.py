@@ -141,7 +141,10 @@ def scenes_seen(ck, data) -> str:
         text = (f"the run's training set grew as the data set rendered, from {first} scenes at "
                 f"its first start to {n}")
     if isinstance(last, int) and isinstance(n, int) and last < n:
-        text += f"; its last session trained on the {last} rendered on its machine"
+        # The trainer keeps the largest set one session saw, not a sum over sets: a run
+        # that moved to another set saw more scenes than either count.
+        text = (f"the largest training set one of its sessions saw held {n} scenes; its last "
+                f"session trained on the {last} rendered on its machine")
     return text + (" (the set was still rendering)" if still_rendering(ck, data) else "")
 
 
