@@ -92,6 +92,18 @@ NOTES = {
                   "three together are better at every spp (docs/reconstruction.md, 'Two branches, "
                   "one soup'). The Cycles family, never trained on, is its verdict "
                   "(docs/cycles-report.md); it continues on GPUs (scripts/gpu-session).",
+    "temc2-fast": "Its first 4 CPU-hours (14,401 s, 23,085 steps) trained on spectral-v2. On "
+                  "2026-12-06 it trained 1.1 CPU-hours on 185 new scenes of every family "
+                  "(`fast-scenes` in the data row: noisy from 1 spp, 30 % sampled as weaker "
+                  "renderers sample), with the fixed range term and its aux-guided opening and the "
+                  "cleaner inputs drawn more often (`train --spp-weights 0.5,1,1,2,2.5`); later "
+                  "that day 0.74 CPU-hours more on the same scenes, grown to 195, a second such "
+                  "cycle (32,919 -> 39,171 steps). Its weights are the mean of the checkpoints at "
+                  "the start and the end of that second cycle (`drivers.average --branches`): the "
+                  "end alone tied the start at 64 spp on the Cycles family, the mean is better at "
+                  "every spp there and on the held-out families (docs/reconstruction.md, 'Fast: a "
+                  "second cycle, averaged'). The Cycles family, never trained on, is its verdict "
+                  "(docs/cycles-report.md).",
     "temc2-balanced": "Its first 8 CPU-hours (28,800 s, 39,512 steps) trained on spectral-v2; on "
                       "2026-12-05 it trained 0.8 CPU-hours more on the 107 scenes high's run "
                       "rendered then (the `cpu-l3-scenes` of the data row: every scene family, noisy "
