@@ -227,18 +227,18 @@ typedef uint32_t TEMCQuality;
 // An NT handle to a timeline semaphore.
 #define TEMC_EXTERNAL_SEMAPHORE_TYPE_FLAG_TIMELINE_SEMAPHORE_WIN32 (1 << 8)
 
-// The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
-// temc types.
+// The library's default: balanced, for every filter type ("RT" and "RTLightmap" too:
+// OIDN's default is high, and balanced runs the network temc's high ran until 2026-12-06).
 #define TEMC_QUALITY_DEFAULT 0
 
 // Fastest.
 #define TEMC_QUALITY_FAST 4
 
-// Balanced.
+// Balanced: a network of 3 pyramid levels (their reach cuts the noise one level leaves).
 #define TEMC_QUALITY_BALANCED 5
 
-// Highest quality: balanced's network grown to 3 pyramid levels (farther reach, less
-// noise, best on other renderers' images; about an eighth slower than balanced).
+// Highest quality: balanced's network run on each tile and its half turn, averaged (the
+// "passes" parameter; 2-5 % lower error than balanced at about twice its time).
 #define TEMC_QUALITY_HIGH 6
 
 // Returns the number of physical devices: 1 (the CPU).
@@ -681,7 +681,8 @@ TEMC_API void temcRemoveFilterData(TEMCFilter filter, const char *name);
 // Sets an int (or bool: OIDN treats them alike) parameter. Bools: "hdr", "srgb",
 // "cleanAux" (accepted; temc uses the aux as given), "directional" (RTLightmap; true is
 // refused). Ints: "quality" (TEMC_QUALITY_*), "maxMemoryMB" (-1: the default budget),
-// "tileSize", "spectralBands". Unknown names are ignored with a warning.
+// "tileSize", "passes" (the flip ensemble: 1, 2 or 4; 0, the default: the model's own),
+// "spectralBands". Unknown names are ignored with a warning.
 //
 // # Safety
 // `name` must be NULL or a NUL-terminated string.

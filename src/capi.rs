@@ -225,15 +225,15 @@ pub type TEMCExternalSemaphoreTypeFlags = u32;
 
 /// Quality modes for the filter's "quality" parameter.
 pub type TEMCQuality = u32;
-/// The filter type's default: high for "RT" and "RTLightmap" (as OIDN), balanced for the
-/// temc types.
+/// The library's default: balanced, for every filter type ("RT" and "RTLightmap" too:
+/// OIDN's default is high, and balanced runs the network temc's high ran until 2026-12-06).
 pub const TEMC_QUALITY_DEFAULT: TEMCQuality = 0;
 /// Fastest.
 pub const TEMC_QUALITY_FAST: TEMCQuality = 4;
-/// Balanced.
+/// Balanced: a network of 3 pyramid levels (their reach cuts the noise one level leaves).
 pub const TEMC_QUALITY_BALANCED: TEMCQuality = 5;
-/// Highest quality: balanced's network grown to 3 pyramid levels (farther reach, less
-/// noise, best on other renderers' images; about an eighth slower than balanced).
+/// Highest quality: balanced's network run on each tile and its half turn, averaged (the
+/// "passes" parameter; 2-5 % lower error than balanced at about twice its time).
 pub const TEMC_QUALITY_HIGH: TEMCQuality = 6;
 
 /// Called with each error as it is reported: user pointer, code, message (valid during
@@ -1448,7 +1448,8 @@ pub unsafe extern "C" fn temcRemoveFilterData(filter: TEMCFilter, name: *const c
 /// Sets an int (or bool: OIDN treats them alike) parameter. Bools: "hdr", "srgb",
 /// "cleanAux" (accepted; temc uses the aux as given), "directional" (RTLightmap; true is
 /// refused). Ints: "quality" (TEMC_QUALITY_*), "maxMemoryMB" (-1: the default budget),
-/// "tileSize", "spectralBands". Unknown names are ignored with a warning.
+/// "tileSize", "passes" (the flip ensemble: 1, 2 or 4; 0, the default: the model's own),
+/// "spectralBands". Unknown names are ignored with a warning.
 ///
 /// # Safety
 /// `name` must be NULL or a NUL-terminated string.

@@ -928,6 +928,20 @@ fn empty_images_and_a_zero_memory_budget_follow_oidn() {
     seti(f, "maxMemoryMB", 512);
     assert_eq!(geti(f, "maxMemoryMB"), 512);
     assert_eq!(geti(f, "tileSize"), 0, "the budget picks the tiles again");
+    // The flip ensemble (a temc parameter): 0 (the model's own), 1, 2 or 4 passes; others
+    // refused, the last kept.
+    assert_eq!(geti(f, "passes"), 0);
+    seti(f, "passes", 4);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    seti(f, "passes", 3);
+    assert_eq!(error(d).0, TEMC_ERROR_INVALID_ARGUMENT);
+    assert_eq!(geti(f, "passes"), 4);
+    let single = out.clone();
+    temcCommitFilter(f);
+    temcExecuteFilter(f);
+    assert_eq!(error(d).0, TEMC_ERROR_NONE);
+    assert!(out.iter().all(|v| v.is_finite() && *v > 0.0));
+    assert_ne!(out, single, "four passes average four runs");
     temcReleaseFilter(f);
     temcReleaseDevice(d);
 }

@@ -419,3 +419,64 @@ fn resizing_host_memory() {
         );
     }
 }
+
+/// The flip ensemble: with four passes the filter commutes with a mirror image (the
+/// normal's x mirrored with it), which one pass of the untrained network does not; NaN and
+/// Inf stay harmless; other counts are refused.
+#[test]
+fn four_passes_commute_with_a_mirror_image() {
+    let (w, h) = (64, 64);
+    let img = image(w, h);
+    let normal: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = ((i % w) as f32 / w as f32, (i / w) as f32 / h as f32);
+            [x - 0.5, 0.3 - y, 0.8]
+        })
+        .collect();
+    let mirror = |v: &[f32]| -> Vec<f32> {
+        (0..w * h)
+            .flat_map(|i| {
+                let j = (i / w) * w + (w - 1 - i % w);
+                v[j * 3..j * 3 + 3].to_vec()
+            })
+            .collect()
+    };
+    let run = |color: &[f32], normal: &[f32], passes: usize| -> Vec<f32> {
+        let dev = device(2);
+        let model = weights();
+        let mut out = vec![0f32; w * h * 3];
+        let mut f = Filter::new(&dev, "TEMC2").unwrap();
+        f.set_weights(&model);
+        f.set_input_f32("color", color, w, h).unwrap();
+        f.set_input_f32("normal", normal, w, h).unwrap();
+        f.set_output_f32(&mut out, w, h).unwrap();
+        f.set_input_scale(1.0).unwrap();
+        f.set_passes(passes).unwrap();
+        f.commit().unwrap();
+        assert_eq!(f.execute().unwrap().passes, passes);
+        drop(f);
+        out
+    };
+    let mut mirrored_normal = mirror(&normal);
+    mirrored_normal.chunks_mut(3).for_each(|n| n[0] = -n[0]);
+    let gap = |passes| {
+        let direct = mirror(&run(&img, &normal, passes));
+        max_pq_diff(&direct, &run(&mirror(&img), &mirrored_normal, passes))
+    };
+    let (one, four) = (gap(1), gap(4));
+    assert!(four < 1e-5, "four passes: {four}");
+    assert!(one > 1e-4, "one pass: {one} (the check above could not fail)");
+
+    let mut bad = img.clone();
+    bad[0] = f32::NAN;
+    bad[40] = f32::INFINITY;
+    bad[100] = -3.0;
+    assert!(run(&bad, &normal, 2).iter().all(|v| v.is_finite() && *v >= 0.0));
+    let mut f = Filter::new(&device(1), "TEMC2").unwrap();
+    assert_eq!(f.passes(), 0, "the model's own count by default");
+    f.set_passes(2).unwrap();
+    for n in [3, 8] {
+        assert!(matches!(f.set_passes(n), Err(Error::InvalidArgument(_))), "{n}");
+    }
+    assert_eq!(f.passes(), 2, "a refused count keeps the last");
+}

@@ -176,6 +176,14 @@ const PARAMS: &[Param] = &[
         ),
     },
     Param {
+        names: &["passes"],
+        takes: any,
+        access: Access::Int(
+            |f| f.passes().min(i32::MAX as usize) as i32,
+            Some(|f, v| f.set_passes(positive("passes", v)?)),
+        ),
+    },
+    Param {
         names: &["spectralBands"],
         takes: any,
         access: Access::Int(

@@ -63,6 +63,9 @@ pub struct ModelInfo {
     pub range_opening: RangeOpening,
     /// Whether the level composition caps each coarse correction (`temc.coarse_clamp`).
     pub coarse_clamp: bool,
+    /// Flip-ensemble passes a filter runs unless told otherwise (`temc.passes`: 1, 2 or 4;
+    /// optional, absent means 1).
+    pub passes: usize,
     /// Linear 1.0 corresponds to this many cd/m2 before PQ encoding.
     pub pq_nits_per_unit: f32,
     /// Training data set, or `none` for an untrained test model.
@@ -186,6 +189,15 @@ impl ModelInfo {
                 "metadata `temc.demod_eps` = {demod_eps} must be positive"
             )));
         }
+        let passes = match raw.get("temc.passes") {
+            None => 1,
+            Some(v) => num("temc.passes", v)?,
+        };
+        if !matches!(passes, 1 | 2 | 4) {
+            return Err(Error::Model(format!(
+                "metadata `temc.passes` = {passes} must be 1, 2 or 4"
+            )));
+        }
         let test_relmse = match get("temc.test_relmse")? {
             "none" | "" => None,
             v => Some(num("temc.test_relmse", v)?),
@@ -210,6 +222,7 @@ impl ModelInfo {
             upsample,
             range_opening,
             coarse_clamp,
+            passes,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
             train_steps: num("temc.train_steps", get("temc.train_steps")?)?,

@@ -1,8 +1,10 @@
 //! The models built into the library: TEMC-2 fast, balanced and high, embedded from onnx/
-//! at compile time (their model cards sit beside them there). High is balanced's network
-//! grown to 3 pyramid levels, which reach farther and cut the noise one 5x5 level leaves,
-//! with its coarse levels capped and composed bilinearly (docs/reconstruction.md, "High:
-//! three levels, fenced"). The baselines (TEMC-1, DEMC, AE) ship as files in
+//! at compile time (their model cards sit beside them there). Balanced is a network of
+//! 3 pyramid levels, which reach farther and cut the noise one 5x5 level leaves, with its
+//! coarse levels capped and composed bilinearly (docs/reconstruction.md, "High: three
+//! levels, fenced"); high is the same network with `temc.passes` 2, run on each tile and
+//! its half turn and averaged (docs/reconstruction.md, "A flip ensemble"). Fast is one
+//! level at half the width. The baselines (TEMC-1, DEMC, AE) ship as files in
 //! onnx/baselines/ and need "weights".
 
 use std::sync::{Arc, OnceLock};
@@ -52,9 +54,10 @@ mod tests {
     use crate::engine::Model;
 
     /// Each quality mode is a trained TEMC-2; fast is a narrower network than balanced,
-    /// and high reconstructs at more pyramid levels (issue 36: several scales).
+    /// balanced reconstructs at several pyramid levels (issue 36: several scales), and high
+    /// runs balanced's network over more flip passes.
     #[test]
-    fn quality_modes_are_trained_temc2_of_growing_size() {
+    fn quality_modes_are_trained_temc2_of_growing_cost() {
         let shape = |q| {
             let info = Model::from_bytes(builtin_model("TEMC2", q).unwrap())
                 .unwrap()
@@ -65,7 +68,7 @@ mod tests {
                 !info.is_untrained(),
                 "{q:?}: the built-in model is untrained"
             );
-            (info.width, info.levels)
+            (info.width, info.levels, info.passes)
         };
         let (fast, balanced, high) = (
             shape(Quality::Fast),
@@ -73,7 +76,9 @@ mod tests {
             shape(Quality::High),
         );
         assert!(fast.0 < balanced.0, "{fast:?} {balanced:?}");
-        assert!(high.0 >= balanced.0 && high.1 >= 3, "{balanced:?} {high:?}");
+        assert!(balanced.1 >= 3 && balanced.2 == 1, "{balanced:?}");
+        assert!(high.0 == balanced.0 && high.1 == balanced.1, "{balanced:?} {high:?}");
+        assert!(high.2 > balanced.2, "{balanced:?} {high:?}");
         // Not assert_eq: a failure would print megabytes of model.
         assert!(
             builtin_model("TEMC2", Quality::Default) == builtin_model("TEMC2", Quality::Balanced)

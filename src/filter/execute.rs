@@ -14,6 +14,7 @@ use ndarray::Array3;
 use rayon::prelude::*;
 
 use super::input::{self, ColorInput};
+use super::passes;
 use super::{ExecuteStats, ImageName, Monitor, RawImage};
 use crate::color::{self, features, Exposure, SpectralBands};
 use crate::engine::{Model, ModelInfo, NetInput};
@@ -36,12 +37,18 @@ pub(super) struct Job<'m> {
     pub input_scale: Option<f32>,
     pub max_memory_bytes: usize,
     pub tile_size: usize,
+    /// Runs per tile, one per orientation ([`passes`]), averaged: 1, 2 or 4.
+    pub passes: usize,
     pub verbose: i32,
 }
 /// Floats per window pixel that a tile allocates besides tract: chroma 2, luma 1, aux 7,
 /// noisy radiance 3, albedo 3, the reconstruction's output 3 and its scratch
 /// ([`reconstruct::SCRATCH_PLANES`]).
 const TILE_PLANES: f64 = 19.0 + reconstruct::SCRATCH_PLANES;
+
+/// What a tile of several passes allocates besides: the output sum (3 planes) and a flip's
+/// transient copy of the largest packed array (the 7 aux planes).
+const PASS_PLANES: f64 = 10.0;
 
 /// tract's scratch beyond the live tensors the engine's estimate counts (packing panels,
 /// direct-convolution buffers, allocator slack): one 832x832 TEMC-2 tile peaked about 1.4
@@ -261,7 +268,8 @@ fn plan(
     let model = job.model.as_ref();
     let info = model.info();
     let (weights, per_px) = model.memory_estimate()?;
-    let per_px = per_px * TRACT_SCRATCH + TILE_PLANES * 4.0;
+    let planes = TILE_PLANES + if job.passes > 1 { PASS_PLANES } else { 0.0 };
+    let per_px = per_px * TRACT_SCRATCH + planes * 4.0;
     let staging = (w * h * 12 + snapshot_bytes) as f64;
     let per_thread = (job.max_memory_bytes as f64 - staging - weights) / threads as f64;
     let overlap = info.tile_overlap.div_ceil(info.alignment) * info.alignment;
@@ -297,6 +305,23 @@ struct Packed {
 impl Packed {
     fn plane(a: &Array3<f32>) -> &[f32] {
         a.as_slice().expect("packed planes are in standard layout")
+    }
+
+    /// Reverses rows and/or columns of every plane, mirroring the normal feature with them
+    /// (`normal`: its first aux plane, if the layout has one).
+    fn flip(&mut self, rows: bool, cols: bool, normal: Option<usize>) {
+        for a in [
+            &mut self.chroma,
+            &mut self.luma,
+            &mut self.aux,
+            &mut self.rgb,
+            &mut self.albedo,
+        ] {
+            passes::flip(a, rows, cols);
+        }
+        if let Some(first) = normal {
+            passes::mirror_normal(&mut self.aux, first, rows, cols);
+        }
     }
 }
 
@@ -438,6 +463,33 @@ fn denoise_tile(
     reconstruct::reconstruct(&params, rgb, albedo, Some(aux), &refs, win.h, win.w)
 }
 
+/// Stage 6 and 7 over the flip ensemble: [`denoise_tile`] once per orientation of
+/// `passes`, each output turned back, their mean returned. Leaves `p` flipped.
+fn denoise_passes(
+    model: &Model,
+    p: &mut Packed,
+    win: crate::tile::Rect,
+    (hdr, exposure): (bool, f32),
+    count: usize,
+) -> Result<Vec<f32>, Error> {
+    let orientations = passes::orientations(count);
+    if orientations.len() == 1 {
+        return denoise_tile(model, p, win, hdr, exposure);
+    }
+    let normal = model.info().aux_plane("normal");
+    let mut sum = vec![0.0; 3 * win.w * win.h];
+    let mut at = passes::Orientation::default();
+    for &o in orientations {
+        p.flip(at.rows != o.rows, at.cols != o.cols, normal);
+        at = o;
+        let out = denoise_tile(model, p, win, hdr, exposure)?;
+        passes::accumulate(&mut sum, &out, (win.h, win.w), o);
+    }
+    let scale = 1.0 / orientations.len() as f32;
+    sum.iter_mut().for_each(|v| *v *= scale);
+    Ok(sum)
+}
+
 /// Runs the job. With an "output" image the result is written there and `None` returned;
 /// without one, the packed RGB result is returned instead.
 pub(super) fn run(
@@ -501,9 +553,9 @@ pub(super) fn run(
             return Err(Error::Cancelled);
         }
         let win = tile.window;
-        let packed = pack_tile(win, (w, h), &src, stats, job.hdr, info);
+        let mut packed = pack_tile(win, (w, h), &src, stats, job.hdr, info);
         let exposure = stats.exposure.input_scale();
-        let out = denoise_tile(model, &packed, win, job.hdr, exposure)?;
+        let out = denoise_passes(model, &mut packed, win, (job.hdr, exposure), job.passes)?;
         let n = win.w * win.h;
         let core = tile.core;
         for y in core.y..core.y + core.h {
@@ -546,6 +598,7 @@ pub(super) fn run(
         input_scale: stats.exposure.input_scale(),
         threads,
         estimated_peak_bytes: estimated_peak,
+        passes: job.passes,
     };
     match images[ImageName::Output as usize] {
         None => Ok((stats, Some(staged))),

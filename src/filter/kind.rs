@@ -1,7 +1,7 @@
 //! Filter types and what each brings: the architecture it runs, its defaults, the images
 //! and parameters it takes. OIDN's "RT" and "RTLightmap" run TEMC-2 with OIDN's defaults.
 
-use super::{ImageName, Quality};
+use super::ImageName;
 use crate::Error;
 
 /// A filter type: one of temc's model architectures, or one of OIDN's two types.
@@ -15,8 +15,9 @@ pub enum Kind {
     Demc,
     /// The autoencoder baseline ("AE").
     Ae,
-    /// OIDN's "RT": TEMC-2 with OIDN's defaults ("hdr" false, quality high), OIDN's checks
-    /// at commit, and the prefiltering of a lone albedo or normal image.
+    /// OIDN's "RT": TEMC-2 with OIDN's defaults ("hdr" false; the default quality, which
+    /// is balanced in temc), OIDN's checks at commit, and the prefiltering of a lone albedo
+    /// or normal image.
     Rt,
     /// OIDN's "RTLightmap": TEMC-2 on HDR colour only.
     RtLightmap,
@@ -94,16 +95,6 @@ impl Kind {
     /// Whether the input is always HDR ("RTLightmap": "hdr" and "srgb" do not apply).
     pub fn hdr_only(self) -> bool {
         self == Kind::RtLightmap
-    }
-
-    /// The quality a new filter has: high for OIDN's types (as OIDN reports it),
-    /// [`Quality::Default`] for temc's.
-    pub fn default_quality(self) -> Quality {
-        if self.is_oidn() {
-            Quality::High
-        } else {
-            Quality::Default
-        }
     }
 
     /// The memory budget a new filter has: OIDN's "no explicit limit" for OIDN's types,

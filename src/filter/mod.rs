@@ -28,6 +28,7 @@ mod denormals;
 mod execute;
 mod input;
 mod kind;
+mod passes;
 
 pub use builtin::builtin_model;
 pub use commit::ExecutionPath;
@@ -46,13 +47,14 @@ use crate::Error;
 /// Quality modes, with OIDN's numeric values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Quality {
-    /// The library's choice (balanced).
+    /// The library's choice (balanced, for every filter type).
     Default = 0,
     /// Fastest.
     Fast = 4,
     /// The default trade-off.
     Balanced = 5,
-    /// Best quality: 3 pyramid levels (src/filter/builtin.rs).
+    /// Best quality: balanced's network run twice per tile, on the tile and its half turn,
+    /// averaged (src/filter/builtin.rs).
     High = 6,
 }
 
@@ -82,12 +84,13 @@ impl Quality {
         }
     }
 
-    /// The quality that runs for a filter of type `kind`: [`Quality::Default`] is high
-    /// for OIDN's types (OIDN's default) and balanced for temc's; the others are themselves.
-    /// The one place that decides what the default quality is.
-    pub fn resolve(self, kind: Kind) -> Quality {
+    /// The quality that runs for a filter of type `kind`: [`Quality::Default`] is
+    /// balanced, for OIDN's types too (OIDN's default is high, but temc's high is a
+    /// two-pass ensemble at twice balanced's time; balanced runs the network OIDN's types
+    /// ran as high until 2026-12-06); the others are themselves. The one place that
+    /// decides what the default quality is.
+    pub fn resolve(self, _kind: Kind) -> Quality {
         match self {
-            Quality::Default if kind.is_oidn() => Quality::High,
             Quality::Default => Quality::Balanced,
             q => q,
         }
@@ -377,6 +380,8 @@ pub struct Filter<'a> {
     quality: Quality,
     max_memory: MaxMemory,
     tile_size: usize,
+    /// Flip-ensemble passes: 1, 2 or 4; 0: the model's own (`temc.passes`).
+    passes: usize,
     input_scale: Option<f32>,
     spectral: SpectralParams,
     /// OIDN's checks at commit (see [`Filter::set_oidn_checks`]).
@@ -410,9 +415,10 @@ impl<'a> Filter<'a> {
             hdr: kind.default_hdr(),
             srgb: false,
             clean_aux: false,
-            quality: kind.default_quality(),
+            quality: Quality::Default,
             max_memory: kind.default_max_memory(),
             tile_size: 0,
+            passes: 0,
             input_scale: None,
             spectral: SpectralParams {
                 bands: 0,
@@ -736,6 +742,35 @@ impl<'a> Filter<'a> {
         self.tile_size
     }
 
+    /// Runs of the network per tile, one per orientation of the tile (1: the tile; 2: and
+    /// its half turn; 4: and its two mirror images), averaged; 0, the default, takes the
+    /// model's own count (`temc.passes`: 2 for the built-in high, 1 otherwise). Each pass
+    /// costs about one run's time; averaging the orientations cuts the residual noise a
+    /// little (docs/reconstruction.md, "A flip ensemble").
+    ///
+    /// ```
+    /// use temc::filter::{Device, Filter};
+    /// let mut filter = Filter::new(&Device::new(), "TEMC2").unwrap();
+    /// filter.set_passes(4).unwrap();
+    /// assert_eq!(filter.passes(), 4);
+    /// assert!(filter.set_passes(3).is_err());
+    /// ```
+    pub fn set_passes(&mut self, passes: usize) -> Result<(), Error> {
+        if passes != 0 && !passes::is_allowed(passes) {
+            return Err(Error::InvalidArgument(format!(
+                "passes = {passes}: must be 0 (the model's own), 1, 2 or 4"
+            )));
+        }
+        self.passes = passes;
+        self.changed();
+        Ok(())
+    }
+
+    /// The flip-ensemble passes set (0: the model's own).
+    pub fn passes(&self) -> usize {
+        self.passes
+    }
+
     /// Multiplies the input before PQ encoding; NaN restores automatic exposure.
     pub fn set_input_scale(&mut self, s: f32) -> Result<(), Error> {
         if s.is_nan() {
@@ -1024,6 +1059,10 @@ impl<'a> Filter<'a> {
             input_scale: self.input_scale,
             max_memory_bytes: self.max_memory.bytes(),
             tile_size,
+            passes: match self.passes {
+                0 => model.info().passes,
+                n => n,
+            },
             verbose: self.device.verbose(),
         };
         execute::run(job, &pool, self.monitor.as_mut())
@@ -1045,4 +1084,6 @@ pub struct ExecuteStats {
     pub threads: usize,
     /// Estimated peak bytes (staging buffers + concurrent tiles).
     pub estimated_peak_bytes: f64,
+    /// Network runs per tile (the flip ensemble's passes).
+    pub passes: usize,
 }

@@ -348,12 +348,15 @@ def checkpoint_recon(ckpt: dict) -> dict:
     return {**RECON_DEFAULTS, **(ckpt.get("recon") or {})}
 
 
-def label(arch: str, width, levels: int = 1) -> str:
+def label(arch: str, width, levels: int = 1, passes: int = 1) -> str:
     """A model's name in the accuracy report and its model card, e.g. "TEMC-2 w0.125", with
-    its pyramid levels where there are several ("TEMC-2 w0.125, 3 levels"): a 3-level
-    candidate has balanced's width, and the report keys its rows by this name."""
+    its pyramid levels where there are several ("TEMC-2 w0.125, 3 levels") and its flip
+    passes where there are several ("..., 2 passes": balanced and high share a network),
+    since the report keys its rows by this name."""
     name = f"{ARCH_NAMES[arch]} w{float(width):g}"
-    return name if int(levels) == 1 else f"{name}, {int(levels)} levels"
+    if int(levels) > 1:
+        name += f", {int(levels)} levels"
+    return name if int(passes) == 1 else f"{name}, {int(passes)} passes"
 
 
 def count_params(model: nn.Module) -> tuple:

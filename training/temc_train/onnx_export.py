@@ -46,8 +46,9 @@ def recon_of(model) -> dict:
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
-             test_relmse=None, description: str = "", tile_overlap=None) -> dict:
-    """The contract's metadata_props (docs/contracts.md §2), all values strings.
+             test_relmse=None, description: str = "", tile_overlap=None, passes: int = 1) -> dict:
+    """The contract's metadata_props (docs/contracts.md §2), all values strings. `passes`
+    is how many flip passes a filter runs the model over by default (`temc.passes`).
     `tile_overlap` is the measured one (receptive.effective_overlap) for trained models; by
     default the theoretical bound (network receptive field plus reconstruction reach)."""
     if tile_overlap is None:
@@ -77,6 +78,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.train_steps": str(int(steps)),
         "temc.test_relmse": "none" if test_relmse is None else repr(float(test_relmse)),
         "temc.description": description,
+        "temc.passes": str(int(passes)),
     }
 
 

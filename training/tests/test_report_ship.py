@@ -365,6 +365,7 @@ def test_card_names_both_sets_when_the_last_session_trained_elsewhere():
 def test_labels_name_the_levels_of_a_pyramid():
     assert models.label("temc2", 0.125) == "TEMC-2 w0.125"
     assert models.label("temc2", "0.125", "3") == "TEMC-2 w0.125, 3 levels"
+    assert models.label("temc2", 0.125, 3, "2") == "TEMC-2 w0.125, 3 levels, 2 passes"
 
 
 def test_report_refuses_a_mock_matplotlib(monkeypatch):

@@ -29,17 +29,15 @@ SHIPPED = {
     # Fast: one level of 5x5 with guides at width 0.0625, continuing the best arm of the
     # Noise2Noise probe (docs/noise2noise.md).
     "temc2-fast": ("temc2-w0.0625-single", "TEMC_QUALITY_FAST"),
-    # Balanced: the best design of the equal-budget probes (docs/reconstruction-design.md),
-    # one level of 5x5 with guides, forked at 14,007 CPU s from temc2-w0.125-single to add
-    # the block-mean energy term (--mean-weight 0.2), which measured better on 167 val+test
-    # images at 19,200 s; the 3-level runs (temc2-w0.125, and one grown to 3 levels) worse.
-    "temc2-balanced": ("temc2-w0.125-energy", "TEMC_QUALITY_BALANCED (the default)"),
-    # High: balanced's run grown to 3 levels (temc2-w0.125-l3), shipped with the aux-guided
-    # opening, the coarse clamp and bilinear composition (FILE_RECON), which took away the
-    # blocks it drew at small lamps and fireflies; better than balanced on the Cycles family
-    # at every spp and at 4 spp everywhere, worse at 16 and 64 spp on our held-out families
-    # (docs/reconstruction.md, "High: three levels, fenced"). It replaced the 3-level w0.25
-    # run (temc2-w0.25), which trailed balanced and was retired (runs/RETIRED.md).
+    # Balanced: the one-level run (temc2-w0.125-energy) grown to 3 levels (temc2-w0.125-l3),
+    # shipped with the aux-guided opening, the coarse clamp and bilinear composition
+    # (FILE_RECON), which took away the blocks it drew at small lamps and fireflies (docs/
+    # reconstruction.md, "High: three levels, fenced"). It shipped as high until 2026-12-06
+    # and then replaced the one-level balanced, which it beat on the Cycles family and on
+    # every kind of test scene at every spp for 1.17x its time (docs/reconstruction.md,
+    # "A flip ensemble; balanced takes high's network").
+    "temc2-balanced": ("temc2-w0.125-l3", "TEMC_QUALITY_BALANCED (the default)"),
+    # High: the same network and weights, run over two flip passes (FILE_PASSES).
     "temc2-high": ("temc2-w0.125-l3", "TEMC_QUALITY_HIGH"),
     # The baselines (TEMC-1 w0.125, DEMC w0.125, AE w0.25) return with issue 15's equal
     # 2-CPU-hour runs; the reconstruction's format change retired their old files.
@@ -53,14 +51,18 @@ SHIP_RECON = {"fixed_range": True, "range_opening": "aux"}
 # And per model: high's coarse levels capped (a firefly they spread no longer raises a block)
 # and composed bilinearly (no 2x2 grid on flat walls), both fixed functions, added at shipping
 # and trained with since 2026-12-05 (docs/reconstruction.md, "High: three levels, fenced").
-FILE_RECON = {"temc2-high": {"coarse_clamp": True, "upsample": "bilinear"}}
+FILE_RECON = {file: {"coarse_clamp": True, "upsample": "bilinear"}
+              for file in ("temc2-balanced", "temc2-high")}
+# Flip passes a filter runs by default (`temc.passes`; 1 when absent): high averages the
+# tile and its half turn, 2-5 % lower RelMSE than one pass on the Cycles family at twice
+# the time (docs/reconstruction.md, "A flip ensemble"). Four passes gained 3.5-5 %.
+FILE_PASSES = {"temc2-high": 2}
 # Tile overlaps the seam test raised above the measured reach's (file -> pixels, why): the
 # reach is measured on a mild image, and seams show on heavy-tailed noise first.
 MIN_OVERLAP = {
-    # 2026-12-03, 22,632 steps: reach 30 px -> 64 px overlap, but tiled and untiled differed by
-    # 2.3e-3 in PQ at 64 (tests/filter_api.rs, bound 1e-3) and by 3.7e-4 at 96.
+    # 2026-12-05, 55,790 steps (then high's; balanced's and high's since 2026-12-06): the
+    # seam test differed by 1.7e-3 at its measured 64.
     "temc2-balanced": 96,
-    # 2026-12-05, 55,790 steps: the seam test differed by 1.7e-3 at its measured 64.
     "temc2-high": 96,
     # 2026-12-06, 32,919 steps: its measured reach gave 64 px, but the seam test differed by
     # 8.9e-3 in PQ at 64, 2.8e-3 at 96 and 5.3e-4 at 128; at 39,171 steps 128 still passes.
@@ -68,8 +70,21 @@ MIN_OVERLAP = {
 }
 # What a card must say beyond its numbers.
 NOTES = {
-    "temc2-high": "Grown from balanced: its first 8 CPU-hours (28,800 s, 39,512 steps) are the "
-                  "balanced run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours on 36 "
+    "temc2-fast": "Its first 4 CPU-hours (14,401 s, 23,085 steps) trained on spectral-v2. On "
+                  "2026-12-06 it trained 1.1 CPU-hours on 185 new scenes of every family "
+                  "(`fast-scenes` in the data row: noisy from 1 spp, 30 % sampled as weaker "
+                  "renderers sample), with the fixed range term and its aux-guided opening and the "
+                  "cleaner inputs drawn more often (`train --spp-weights 0.5,1,1,2,2.5`); later "
+                  "that day 0.74 CPU-hours more on the same scenes, grown to 195, a second such "
+                  "cycle (32,919 -> 39,171 steps). Its weights are the mean of the checkpoints at "
+                  "the start and the end of that second cycle (`drivers.average --branches`): the "
+                  "end alone tied the start at 64 spp on the Cycles family, the mean is better at "
+                  "every spp there and on the held-out families (docs/reconstruction.md, 'Fast: a "
+                  "second cycle, averaged'). The Cycles family, never trained on, is its verdict "
+                  "(docs/cycles-report.md).",
+    "temc2-balanced": "Grown from the one-level balanced run (temc2-w0.125-energy, which "
+                      "shipped as balanced until 2026-12-06): its first 8 CPU-hours (28,800 s, "
+                      "39,512 steps) are that run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours on 36 "
                   "scenes of every scene family (`temc-render dataset --families all`, rendered on "
                   "that session's machine), 2.35 h at lr 1e-4 and then 0.6 h at 3e-4 with the finest "
                   "blends opened, without the coarse clamp and the bilinear composition (added at "
@@ -91,29 +106,17 @@ NOTES = {
                   "each end with the start alone lost on the Cycles family at 4 or at 64 spp, the "
                   "three together are better at every spp (docs/reconstruction.md, 'Two branches, "
                   "one soup'). The Cycles family, never trained on, is its verdict "
-                  "(docs/cycles-report.md); it continues on GPUs (scripts/gpu-session).",
-    "temc2-fast": "Its first 4 CPU-hours (14,401 s, 23,085 steps) trained on spectral-v2. On "
-                  "2026-12-06 it trained 1.1 CPU-hours on 185 new scenes of every family "
-                  "(`fast-scenes` in the data row: noisy from 1 spp, 30 % sampled as weaker "
-                  "renderers sample), with the fixed range term and its aux-guided opening and the "
-                  "cleaner inputs drawn more often (`train --spp-weights 0.5,1,1,2,2.5`); later "
-                  "that day 0.74 CPU-hours more on the same scenes, grown to 195, a second such "
-                  "cycle (32,919 -> 39,171 steps). Its weights are the mean of the checkpoints at "
-                  "the start and the end of that second cycle (`drivers.average --branches`): the "
-                  "end alone tied the start at 64 spp on the Cycles family, the mean is better at "
-                  "every spp there and on the held-out families (docs/reconstruction.md, 'Fast: a "
-                  "second cycle, averaged'). The Cycles family, never trained on, is its verdict "
-                  "(docs/cycles-report.md).",
-    "temc2-balanced": "Its first 8 CPU-hours (28,800 s, 39,512 steps) trained on spectral-v2; on "
-                      "2026-12-05 it trained 0.8 CPU-hours more on the 107 scenes high's run "
-                      "rendered then (the `cpu-l3-scenes` of the data row: every scene family, noisy "
-                      "from 1 spp, 30 % sampled as weaker renderers sample), with the fixed range "
-                      "term and its aux-guided opening it ships with, one learning-rate cycle "
-                      "peaking at 3e-4. The Cycles family, never trained on, is its verdict "
-                      "(docs/cycles-report.md).",
+                  "(docs/cycles-report.md); it continues on GPUs (scripts/gpu-session). It shipped as high "
+                  "from 2026-12-05 and as balanced since 2026-12-06.",
+    "temc2-high": "Balanced's network and weights (temc2-balanced.md tells their training), "
+                  "run over two flip passes (`temc.passes` 2: each tile and its half turn, "
+                  "averaged; src/filter/passes.rs) at about twice balanced's time. On the "
+                  "Cycles family the two passes cut RelMSE by 2-5 % (docs/reconstruction.md, "
+                  "'A flip ensemble'); `temc denoise --passes 4` (or the filter's \"passes\") "
+                  "cuts a little more.",
 }
 # The cumulative training budgets of scripts/train-all (issue 15).
-BUDGET_HOURS = {"temc2-fast": 4, "temc2-balanced": 8}
+BUDGET_HOURS = {"temc2-fast": 4}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
@@ -212,7 +215,7 @@ def shipped_with(file, key) -> str:
     return " (added at shipping), " if key in FILE_RECON.get(file, {}) else ", "
 
 
-def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap):
+def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap, passes):
     """The model card. `data`: {"text": the data set's settings, "train": its training
     scenes or None}."""
     lines = [f"# {file}.onnx: {ARCH_NAMES[arch]} at width {width:g}", ""]
@@ -292,6 +295,11 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
         "keep-mean stage (docs/keep-mean.md; not seen in training) |",
+        f"| passes | {passes}: "
+        + ("the network runs once per tile" if passes == 1 else
+           "the network runs on each tile and its half turn, averaged (src/filter/passes.rs)"
+           if passes == 2 else "the network runs on each tile's four flips, averaged")
+        + "; a filter's \"passes\" (`temc denoise --passes`) overrides it |",
         f"| tile overlap | {overlap} px, from the measured effective reach of network + reconstruction "
         "(an impulse's effect below 1e-4 of its size; receptive.effective_overlap)"
         + (", raised to pass the seam test (ship.MIN_OVERLAP)" if file in MIN_OVERLAP else "") + " |",
@@ -302,7 +310,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         "",
     ]
     if meas:
-        me = label(arch, width, recon["levels"])
+        me = label(arch, width, recon["levels"], passes)
         ours, oidn = table(meas, me), table(meas, "OIDN high")
         noisy = table(meas, "noisy")
         err = {(r["denoiser"], r["scene"], r["spp"]): float(r["RelMSE"]) for r in meas}
@@ -424,13 +432,15 @@ def ship_one(a, file, run_name, mode, meas, data):
     ck = checkpoint_facts(held, model, a.data)
     recon = {**recon_of(model), **SHIP_RECON, **FILE_RECON.get(file, {})}
     overlap = max(receptive.effective_overlap(model, recon), MIN_OVERLAP.get(file, 0))
-    test_relmse = (table(meas, label(arch, width, recon["levels"])).get(16, {}).get("RelMSE")
+    passes = FILE_PASSES.get(file, 1)
+    test_relmse = (table(meas, label(arch, width, recon["levels"], passes)).get(16, {}).get("RelMSE")
                    if meas else None)
     desc = (f"{ARCH_NAMES[arch]} width {width:g}, trained {ck['train_seconds'] / 60:.0f} CPU minutes "
             f"({ck['train_steps']} steps) on temc-render's {ck['dataset']}; a small CPU-trained "
             "model, not the paper's")
     meta = metadata(arch, width, recon, dataset=ck["dataset"], steps=ck["train_steps"],
-                    test_relmse=test_relmse, description=desc, tile_overlap=overlap)
+                    test_relmse=test_relmse, description=desc, tile_overlap=overlap,
+                    passes=passes)
     path = os.path.join(a.onnx, file + ".onnx")
     os.makedirs(os.path.dirname(path), exist_ok=True)
     diff = export(model, path, meta)
@@ -440,7 +450,7 @@ def ship_one(a, file, run_name, mode, meas, data):
     write_goldens(model, path, os.path.join(a.golden, os.path.basename(file)))
     with open(os.path.join(a.onnx, file + ".md"), "w") as f:
         f.write(card(file, run_name, mode, arch, width, ck, read_log(run), size, meas, data,
-                     recon, overlap))
+                     recon, overlap, passes))
     print(f"{path}: {size / 2**20:.1f} MiB, onnxruntime vs PyTorch {diff:.1e}, "
           f"{ck['train_steps']} steps", flush=True)
 

@@ -34,7 +34,8 @@ def model_label(temc, path):
     """(name, metadata) of an ONNX model; the name is models.label's, as on its model card."""
     r = subprocess.run([temc, "info", path, "--json"], capture_output=True, text=True, check=True)
     meta = json.loads(r.stdout)
-    return label(meta["temc.architecture"], meta["temc.width"], meta.get("temc.levels", "1")), meta
+    return label(meta["temc.architecture"], meta["temc.width"], meta.get("temc.levels", "1"),
+                 meta.get("temc.passes", "1")), meta
 
 
 def distinct_labels(names, paths):
