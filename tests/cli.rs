@@ -100,6 +100,12 @@ fn failures_exit_non_zero_and_leave_no_output() {
     std::fs::write(d.join("garbage.exr"), b"definitely not an exr").unwrap();
     let cases: Vec<Vec<PathBuf>> = vec![
         vec!["--color".into(), d.join("missing.pfm")],
+        vec![
+            "--color".into(),
+            d.join("in.pfm"),
+            "--passes".into(),
+            "3".into(),
+        ],
         vec!["--color".into(), d.join("garbage.exr")],
         vec![
             "--color".into(),
@@ -132,10 +138,15 @@ fn failures_exit_non_zero_and_leave_no_output() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no-such-model.onnx"));
     assert!(!d.join("out.pfm").exists());
-    // No model: the built-in TEMC-2 of the quality mode runs; the modes differ.
-    for (quality, name) in [("balanced", "b.pfm"), ("fast", "f.pfm")] {
+    // No model: the built-in TEMC-2 of the quality mode runs; the modes differ, and high
+    // is balanced over two flip passes (the JSON report says how many ran).
+    for (quality, name, passes) in [
+        ("balanced", "b.pfm", 1),
+        ("fast", "f.pfm", 1),
+        ("high", "h.pfm", 2),
+    ] {
         let out = temc()
-            .args(["denoise", "--quality", quality, "--color"])
+            .args(["denoise", "--json", "--quality", quality, "--color"])
             .arg(d.join("in.pfm"))
             .arg("-o")
             .arg(d.join(name))
@@ -146,11 +157,12 @@ fn failures_exit_non_zero_and_leave_no_output() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["passes"], passes, "{quality}");
     }
-    assert_ne!(
-        std::fs::read(d.join("b.pfm")).unwrap(),
-        std::fs::read(d.join("f.pfm")).unwrap()
-    );
+    let read = |name: &str| std::fs::read(d.join(name)).unwrap();
+    assert_ne!(read("b.pfm"), read("f.pfm"));
+    assert_ne!(read("b.pfm"), read("h.pfm"));
     // No temporary files left behind by any of it.
     let leftovers: Vec<_> = std::fs::read_dir(&d)
         .unwrap()

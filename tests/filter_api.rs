@@ -465,18 +465,26 @@ fn four_passes_commute_with_a_mirror_image() {
     };
     let (one, four) = (gap(1), gap(4));
     assert!(four < 1e-5, "four passes: {four}");
-    assert!(one > 1e-4, "one pass: {one} (the check above could not fail)");
+    assert!(
+        one > 1e-4,
+        "one pass: {one} (the check above could not fail)"
+    );
 
     let mut bad = img.clone();
     bad[0] = f32::NAN;
     bad[40] = f32::INFINITY;
     bad[100] = -3.0;
-    assert!(run(&bad, &normal, 2).iter().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(run(&bad, &normal, 2)
+        .iter()
+        .all(|v| v.is_finite() && *v >= 0.0));
     let mut f = Filter::new(&device(1), "TEMC2").unwrap();
     assert_eq!(f.passes(), 0, "the model's own count by default");
     f.set_passes(2).unwrap();
     for n in [3, 8] {
-        assert!(matches!(f.set_passes(n), Err(Error::InvalidArgument(_))), "{n}");
+        assert!(
+            matches!(f.set_passes(n), Err(Error::InvalidArgument(_))),
+            "{n}"
+        );
     }
     assert_eq!(f.passes(), 2, "a refused count keeps the last");
 }

@@ -77,7 +77,10 @@ mod tests {
         );
         assert!(fast.0 < balanced.0, "{fast:?} {balanced:?}");
         assert!(balanced.1 >= 3 && balanced.2 == 1, "{balanced:?}");
-        assert!(high.0 == balanced.0 && high.1 == balanced.1, "{balanced:?} {high:?}");
+        assert!(
+            high.0 == balanced.0 && high.1 == balanced.1,
+            "{balanced:?} {high:?}"
+        );
         assert!(high.2 > balanced.2, "{balanced:?} {high:?}");
         // Not assert_eq: a failure would print megabytes of model.
         assert!(

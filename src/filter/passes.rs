@@ -29,11 +29,14 @@ pub struct Orientation {
 /// turn (both flips): it differs from the window in both directions. Four take the
 /// orientations in an order where each step flips one axis, one pass over the planes.
 pub fn orientations(passes: usize) -> &'static [Orientation] {
+    const fn turned(rows: bool, cols: bool) -> Orientation {
+        Orientation { rows, cols }
+    }
     const ALL: [Orientation; 4] = [
-        Orientation { rows: false, cols: false },
-        Orientation { rows: false, cols: true },
-        Orientation { rows: true, cols: true },
-        Orientation { rows: true, cols: false },
+        turned(false, false),
+        turned(false, true),
+        turned(true, true),
+        turned(true, false),
     ];
     const HALF_TURN: [Orientation; 2] = [ALL[0], ALL[2]];
     match passes {
@@ -80,7 +83,9 @@ pub fn accumulate(sum: &mut [f32], out: &[f32], (h, w): (usize, usize), o: Orien
             let src = &plane[sy * w..(sy + 1) * w];
             let dst = &mut sum[k * n + y * w..k * n + (y + 1) * w];
             if o.cols {
-                dst.iter_mut().zip(src.iter().rev()).for_each(|(d, s)| *d += s);
+                dst.iter_mut()
+                    .zip(src.iter().rev())
+                    .for_each(|(d, s)| *d += s);
             } else {
                 dst.iter_mut().zip(src).for_each(|(d, s)| *d += s);
             }
@@ -116,7 +121,13 @@ mod tests {
     #[test]
     fn pass_counts() {
         assert_eq!(orientations(1).len(), 1);
-        assert_eq!(orientations(2)[1], Orientation { rows: true, cols: true });
+        assert_eq!(
+            orientations(2)[1],
+            Orientation {
+                rows: true,
+                cols: true
+            }
+        );
         assert_eq!(orientations(4).len(), 4);
         assert!(is_allowed(2) && !is_allowed(3) && !is_allowed(0));
     }
