@@ -573,8 +573,9 @@ TEMC_API void temcRetainSemaphore(TEMCSemaphore semaphore);
 // Drops a reference to a semaphore: as temcRetainSemaphore.
 TEMC_API void temcReleaseSemaphore(TEMCSemaphore semaphore);
 
-// Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false and quality high by default;
-// given only "albedo" or only "normal" and an "output", it denoises that aux image),
+// Creates a filter: "RT" (OIDN's: TEMC-2 with "hdr" false by default, and the default
+// quality, balanced; given only "albedo" or only "normal" and an "output", it denoises
+// that aux image),
 // "RTLightmap" (TEMC-2 on HDR colour; "directional" must stay false), or temc's
 // "TEMC2", "TEMC1", "DEMC", "AE" (HDR, balanced). The device must be committed
 // (TEMC_ERROR_INVALID_OPERATION otherwise, as in OIDN).
