@@ -9,14 +9,14 @@
 
 use std::sync::{Arc, OnceLock};
 
-use super::{Kind, Quality};
+use super::Quality;
 
 const FAST: &[u8] = include_bytes!("../../onnx/temc2-fast.onnx");
 const BALANCED: &[u8] = include_bytes!("../../onnx/temc2-balanced.onnx");
 const HIGH: &[u8] = include_bytes!("../../onnx/temc2-high.onnx");
 
 /// The built-in ONNX model for filter type `kind` at `quality`, if this build has one
-/// (only "TEMC2" does). `quality` is resolved for "TEMC2" ([`Quality::resolve`]:
+/// (only "TEMC2" does). `quality` is resolved first ([`Quality::resolve`]:
 /// [`Quality::Default`] is [`Quality::Balanced`]).
 ///
 /// ```
@@ -27,7 +27,7 @@ const HIGH: &[u8] = include_bytes!("../../onnx/temc2-high.onnx");
 /// assert!(builtin_model("DEMC", Quality::High).is_none());
 /// ```
 pub fn builtin_model(kind: &str, quality: Quality) -> Option<&'static [u8]> {
-    (kind == "TEMC2").then_some(match quality.resolve(Kind::Temc2) {
+    (kind == "TEMC2").then_some(match quality.resolve() {
         Quality::Fast => FAST,
         Quality::Default | Quality::Balanced => BALANCED,
         Quality::High => HIGH,
@@ -40,7 +40,7 @@ pub(super) fn shared(kind: &str, quality: Quality) -> Option<Arc<[u8]>> {
     static CACHE: [OnceLock<Arc<[u8]>>; 3] = [const { OnceLock::new() }; 3];
     let bytes = builtin_model(kind, quality)?;
     // One slot per distinct model.
-    let slot = match quality.resolve(Kind::Temc2) {
+    let slot = match quality.resolve() {
         Quality::Fast => 0,
         Quality::Default | Quality::Balanced => 1,
         Quality::High => 2,

@@ -84,12 +84,11 @@ impl Quality {
         }
     }
 
-    /// The quality that runs for a filter of type `kind`: [`Quality::Default`] is
-    /// balanced, for OIDN's types too (OIDN's default is high, but temc's high is a
-    /// two-pass ensemble at twice balanced's time; balanced runs the network OIDN's types
-    /// ran as high until 2026-12-06); the others are themselves. The one place that
-    /// decides what the default quality is.
-    pub fn resolve(self, _kind: Kind) -> Quality {
+    /// The quality that runs: [`Quality::Default`] is balanced, for every filter type
+    /// (OIDN's default is high, but temc's high is a two-pass ensemble at twice balanced's
+    /// time; balanced runs the network OIDN's types ran as high until 2026-12-06); the
+    /// others are themselves. The one place that decides what the default quality is.
+    pub fn resolve(self) -> Quality {
         match self {
             Quality::Default => Quality::Balanced,
             q => q,
@@ -912,7 +911,7 @@ impl<'a> Filter<'a> {
         let weights = match self.weights.clone() {
             Some(w) => w,
             None => Weights::Onnx(
-                builtin::shared(kind.name(), self.quality.resolve(self.kind)).ok_or_else(|| {
+                builtin::shared(kind.name(), self.quality.resolve()).ok_or_else(|| {
                     Error::InvalidOperation(format!(
                         "no built-in weights for {}: the baselines ship as files in \
                              onnx/baselines/; set \"weights\" to a temc ONNX model",
