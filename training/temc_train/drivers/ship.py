@@ -34,7 +34,7 @@ SHIPPED = {
     # (FILE_RECON), which took away the blocks it drew at small lamps and fireflies (docs/
     # reconstruction.md, "High: three levels, fenced"). It shipped as high until 2026-12-06
     # and then replaced the one-level balanced, which it beat on the Cycles family and on
-    # every kind of test scene at every spp for 1.17x its time (docs/reconstruction.md,
+    # the held-out families at every spp for 1.03-1.17x its time (docs/reconstruction.md,
     # "A flip ensemble; balanced takes high's network").
     "temc2-balanced": ("temc2-w0.125-l3", "TEMC_QUALITY_BALANCED (the default)"),
     # High: the same network and weights, run over two flip passes (FILE_PASSES).
@@ -48,7 +48,7 @@ SHIPPED = {
 # aux-guided opening keeps 1-2 px lamps out of their neighbours too (docs/reconstruction.md,
 # "Aux-guided opening": balanced's RelMSE on our test split 0.90-0.94x the plain opening's).
 SHIP_RECON = {"fixed_range": True, "range_opening": "aux"}
-# And per model: high's coarse levels capped (a firefly they spread no longer raises a block)
+# And per model: balanced's and high's coarse levels capped (a firefly they spread no longer raises a block)
 # and composed bilinearly (no 2x2 grid on flat walls), both fixed functions, added at shipping
 # and trained with since 2026-12-05 (docs/reconstruction.md, "High: three levels, fenced").
 FILE_RECON = {file: {"coarse_clamp": True, "upsample": "bilinear"}
@@ -82,32 +82,34 @@ NOTES = {
                   "every spp there and on the held-out families (docs/reconstruction.md, 'Fast: a "
                   "second cycle, averaged'). The Cycles family, never trained on, is its verdict "
                   "(docs/cycles-report.md).",
-    "temc2-balanced": "Grown from the one-level balanced run (temc2-w0.125-energy, which "
-                      "shipped as balanced until 2026-12-06): its first 8 CPU-hours (28,800 s, "
-                      "39,512 steps) are that run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours on 36 "
-                  "scenes of every scene family (`temc-render dataset --families all`, rendered on "
-                  "that session's machine), 2.35 h at lr 1e-4 and then 0.6 h at 3e-4 with the finest "
-                  "blends opened, without the coarse clamp and the bilinear composition (added at "
-                  "shipping); then, on 2026-12-05, 1.1 CPU-hours with both, on 107 new scenes that "
-                  "scripts/train-gpu's renderer made beside it (the `cpu-l3-scenes` of the data row: "
-                  "every family, noisy from 1 spp, 30 % sampled as weaker renderers sample, "
-                  "`--weak-share 0.3`), one learning-rate cycle peaking at 3e-4; later that day 1.3 "
-                  "CPU-hours more on the same scenes, a second such cycle (60,159 -> 65,322 "
-                  "steps). Its weights are the mean of the checkpoints at the start and the end of "
-                  "that second cycle (weight averaging, Izmailov et al. 2018): the end alone was "
-                  "better at 4 and 16 spp on the Cycles family but 2 % worse at 64, the mean better "
-                  "at every spp (docs/reconstruction.md, 'A second cycle, averaged'). Then two "
-                  "branches from those weights, on the same data set grown to 221 training scenes: "
-                  "1.24 CPU-hours drawing every noisy spp alike (65,322 -> 70,286 steps; its log "
-                  "is branch-log.csv) and 0.91 CPU-hours drawing the cleaner inputs more often "
-                  "(`train --spp-weights 0.5,1,1,2,2.5` for 1/4/16/64/256 spp; 65,322 -> 68,900, "
-                  "log.csv). Its weights are the mean of the two ends and their start (a model "
-                  "soup, `drivers.average --branches`; its training time counts both branches): "
-                  "each end with the start alone lost on the Cycles family at 4 or at 64 spp, the "
-                  "three together are better at every spp (docs/reconstruction.md, 'Two branches, "
-                  "one soup'). The Cycles family, never trained on, is its verdict "
-                  "(docs/cycles-report.md); it continues on GPUs (scripts/gpu-session). It shipped as high "
-                  "from 2026-12-05 and as balanced since 2026-12-06.",
+    "temc2-balanced": "Grown from the one-level balanced run (temc2-w0.125-energy, which shipped "
+                      "as balanced until 2026-12-06): its first 8 CPU-hours (28,800 s, 39,512 "
+                      "steps) are that run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours "
+                      "on 36 scenes of every scene family (`temc-render dataset --families all`, "
+                      "rendered on that session's machine), 2.35 h at lr 1e-4 and then 0.6 h at "
+                      "3e-4 with the finest blends opened, without the coarse clamp and the "
+                      "bilinear composition (added at shipping); then, on 2026-12-05, 1.1 "
+                      "CPU-hours with both, on 107 new scenes that scripts/train-gpu's renderer "
+                      "made beside it (the `cpu-l3-scenes` of the data row: every family, noisy "
+                      "from 1 spp, 30 % sampled as weaker renderers sample, `--weak-share 0.3`), "
+                      "one learning-rate cycle peaking at 3e-4; later that day 1.3 CPU-hours more "
+                      "on the same scenes, a second such cycle (60,159 -> 65,322 steps). Its "
+                      "weights are the mean of the checkpoints at the start and the end of that "
+                      "second cycle (weight averaging, Izmailov et al. 2018): the end alone was "
+                      "better at 4 and 16 spp on the Cycles family but 2 % worse at 64, the mean "
+                      "better at every spp (docs/reconstruction.md, 'A second cycle, averaged'). "
+                      "Then two branches from those weights, on the same data set grown to 221 "
+                      "training scenes: 1.24 CPU-hours drawing every noisy spp alike (65,322 -> "
+                      "70,286 steps; its log is branch-log.csv) and 0.91 CPU-hours drawing the "
+                      "cleaner inputs more often (`train --spp-weights 0.5,1,1,2,2.5` for "
+                      "1/4/16/64/256 spp; 65,322 -> 68,900, log.csv). Its weights are the mean of "
+                      "the two ends and their start (a model soup, `drivers.average --branches`; "
+                      "its training time counts both branches): each end with the start alone lost "
+                      "on the Cycles family at 4 or at 64 spp, the three together are better at "
+                      "every spp (docs/reconstruction.md, 'Two branches, one soup'). The Cycles "
+                      "family, never trained on, is its verdict (docs/cycles-report.md); it "
+                      "continues on GPUs (scripts/gpu-session). It shipped as high from 2026-12-05 "
+                      "and as balanced since 2026-12-06.",
     "temc2-high": "Balanced's network and weights (temc2-balanced.md tells their training), "
                   "run over two flip passes (`temc.passes` 2: each tile and its half turn, "
                   "averaged; src/filter/passes.rs) at about twice balanced's time. On the "
