@@ -18,6 +18,9 @@ pub const AUX_BUFFERS: [(&str, usize); 3] = [("albedo", 3), ("normal", 3), ("dep
 /// The aux layout every shipped model uses: albedo (3), normal (3), depth (1).
 pub const AUX_LAYOUT: &str = "albedo:3,normal:3,depth:1";
 
+/// The flip-ensemble pass counts a model card (`temc.passes`) or a filter may ask for.
+pub const PASS_COUNTS: [usize; 3] = [1, 2, 4];
+
 /// What a model says about itself.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelInfo {
@@ -193,7 +196,7 @@ impl ModelInfo {
             None => 1,
             Some(v) => num("temc.passes", v)?,
         };
-        if !matches!(passes, 1 | 2 | 4) {
+        if !PASS_COUNTS.contains(&passes) {
             return Err(Error::Model(format!(
                 "metadata `temc.passes` = {passes} must be 1, 2 or 4"
             )));

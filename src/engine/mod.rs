@@ -10,7 +10,7 @@
 mod metadata;
 mod plan_cache;
 
-pub use metadata::{ModelInfo, AUX_BUFFERS, AUX_LAYOUT, FORMAT_VERSION};
+pub use metadata::{ModelInfo, AUX_BUFFERS, AUX_LAYOUT, FORMAT_VERSION, PASS_COUNTS};
 pub use plan_cache::PLAN_CACHE_SIZES;
 
 use std::collections::HashMap;

@@ -46,9 +46,9 @@ pub(super) struct Job<'m> {
 /// ([`reconstruct::SCRATCH_PLANES`]).
 const TILE_PLANES: f64 = 19.0 + reconstruct::SCRATCH_PLANES;
 
-/// What a tile of several passes allocates besides: the output sum (3 planes) and a flip's
-/// transient copy of the largest packed array (the 7 aux planes).
-const PASS_PLANES: f64 = 10.0;
+/// What a tile of several passes allocates besides: the output sum (3 planes; the planes
+/// flip in place).
+const PASS_PLANES: f64 = 3.0;
 
 /// tract's scratch beyond the live tensors the engine's estimate counts (packing panels,
 /// direct-convolution buffers, allocator slack): one 832x832 TEMC-2 tile peaked about 1.4

@@ -8,12 +8,11 @@
 
 use ndarray::Array3;
 
-/// The pass counts a filter takes.
-pub const ALLOWED: [usize; 3] = [1, 2, 4];
+use crate::engine::PASS_COUNTS;
 
-/// Whether `passes` is one of [`ALLOWED`].
+/// Whether `passes` is one of [`PASS_COUNTS`].
 pub fn is_allowed(passes: usize) -> bool {
-    ALLOWED.contains(&passes)
+    PASS_COUNTS.contains(&passes)
 }
 
 /// An orientation of the window: rows reversed, columns reversed.
@@ -46,18 +45,26 @@ pub fn orientations(passes: usize) -> &'static [Orientation] {
     }
 }
 
-/// Reverses the rows and/or columns of every plane of `a` ([planes, h, w]) in place.
+/// Reverses the rows and/or columns of every plane of `a` ([planes, h, w], standard
+/// layout, as the network and the reconstruction read it) in place.
 pub fn flip(a: &mut Array3<f32>, rows: bool, cols: bool) {
-    if rows {
-        a.invert_axis(ndarray::Axis(1));
+    let (_, h, w) = a.dim();
+    if h * w == 0 {
+        return;
     }
-    if cols {
-        a.invert_axis(ndarray::Axis(2));
-    }
-    if rows || cols {
-        // invert_axis only negates strides; the network and the reconstruction read the
-        // planes as flat standard-layout slices.
-        *a = a.as_standard_layout().into_owned();
+    let data = a
+        .as_slice_mut()
+        .expect("packed planes are in standard layout");
+    for plane in data.chunks_exact_mut(h * w) {
+        if cols {
+            plane.chunks_exact_mut(w).for_each(<[f32]>::reverse);
+        }
+        if rows {
+            for y in 0..h / 2 {
+                let (top, bottom) = plane.split_at_mut((h - 1 - y) * w);
+                top[y * w..(y + 1) * w].swap_with_slice(&mut bottom[..w]);
+            }
+        }
     }
 }
 
