@@ -49,6 +49,11 @@ pub const RANGE_TAU: f32 = 3.0;
 /// before the log2: noise in the dark never reads as an edge.
 pub const RANGE_FLOOR: f32 = 0.02;
 
+/// The window (side, in a level's pixels) over which the fixed range term's threshold from
+/// local noise (`temc.range_noise`) averages each pixel's relative deviation from its 3x3
+/// median (docs/reconstruction.md, "Range threshold from local noise").
+pub const RANGE_NOISE_BOX: usize = 7;
+
 /// The aux-guided opening (docs/reconstruction.md, "Aux-guided opening"): two pixels lie on
 /// one surface when the L1 distance of their aux planes is at most this.
 pub const AUX_SAME: f32 = 0.3;
@@ -134,6 +139,9 @@ pub struct Params {
     /// How the composition brings a coarse level's correction to the finer one
     /// (`temc.upsample`).
     pub upsample: Upsample,
+    /// The fixed range term's threshold from local noise, K (`temc.range_noise`): each
+    /// pixel's threshold is min([`RANGE_TAU`], K x its local noise); 0: [`RANGE_TAU`].
+    pub range_noise: f32,
 }
 
 /// The 2x upsampling U of the level composition (docs/reconstruction.md, step 4).
@@ -528,6 +536,61 @@ fn window3(x: &[f32], h: usize, w: usize, op: impl Fn(f32, f32) -> f32 + Copy) -
     out
 }
 
+/// The fixed range term's threshold in stops per pixel from local noise (`temc.range_noise`
+/// = `k` > 0): min([`RANGE_TAU`], k x n), n the [`RANGE_NOISE_BOX`]^2 mean (edges
+/// replicated) of the relative deviation |Y - median3(Y)| / (median3(Y) + [`RANGE_FLOOR`]),
+/// Y the level's luminance at the image's exposure. Where the image is clean (n near 0) a
+/// step of one stop, a shadow's edge, already counts; where it is noisy the threshold stays
+/// [`RANGE_TAU`], so noise never reads as an edge. The same function as
+/// `range_threshold` in training/temc_train/reconstruct.py.
+fn range_threshold(luma: &[f32], h: usize, w: usize, exposure: f32, k: f32) -> Vec<f32> {
+    let v: Vec<f32> = luma.iter().map(|y| y.max(0.0) * exposure).collect();
+    let mut rel = vec![0.0; h * w];
+    for (y, row) in rel.chunks_exact_mut(w).enumerate() {
+        let rows = [y.saturating_sub(1), y, (y + 1).min(h - 1)].map(|r| &v[r * w..][..w]);
+        for (x, o) in row.iter_mut().enumerate() {
+            let cols = [x.saturating_sub(1), x, (x + 1).min(w - 1)];
+            let mut taps = [0.0; 9];
+            for (i, t) in taps.iter_mut().enumerate() {
+                *t = rows[i / 3][cols[i % 3]];
+            }
+            let m = median9(taps);
+            *o = (rows[1][x] - m).abs() / (m + RANGE_FLOOR);
+        }
+    }
+    box_mean(&rel, h, w, RANGE_NOISE_BOX)
+        .into_iter()
+        .map(|n| (k * n).min(RANGE_TAU))
+        .collect()
+}
+
+/// The median of nine values (all finite here): sorted, the middle one.
+fn median9(mut v: [f32; 9]) -> f32 {
+    v.sort_unstable_by(f32::total_cmp);
+    v[4]
+}
+
+/// The mean over each pixel's `side` x `side` window, coordinates clamped to the image
+/// (edges replicated, as PyTorch's replicate padding): along rows, then along columns.
+fn box_mean(x: &[f32], h: usize, w: usize, side: usize) -> Vec<f32> {
+    let r = side / 2;
+    let at = |i: usize, d: usize, n: usize| (i + d).saturating_sub(r).min(n - 1);
+    let mut rows = vec![0.0; h * w];
+    for (src, dst) in x.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
+        for (i, o) in dst.iter_mut().enumerate() {
+            *o = (0..side).map(|d| src[at(i, d, w)]).sum();
+        }
+    }
+    let mut out = vec![0.0; h * w];
+    let scale = 1.0 / (side * side) as f32;
+    for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+        for (x, o) in dst.iter_mut().enumerate() {
+            *o = (0..side).map(|d| rows[at(y, d, h) * w + x]).sum::<f32>() * scale;
+        }
+    }
+    out
+}
+
 /// Reusable per-call buffers: the weights of every tap for one block of one row.
 struct Scratch {
     k: usize,
@@ -648,6 +711,8 @@ fn filter_level_any(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f
     let fixed = p
         .fixed_range
         .then(|| range_guide(&luma, opened, h, w, p.exposure));
+    let tau = (p.fixed_range && p.range_noise > 0.0)
+        .then(|| range_threshold(&luma, h, w, p.exposure, p.range_noise));
     let mut fy = vec![0.0; n];
     let mut fc = vec![0.0; 3 * n];
     for y in 0..h {
@@ -655,7 +720,7 @@ fn filter_level_any(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f
             let bx = (bx0, (bx0 + BLOCK).min(w));
             let at = y * w + bx0..y * w + bx.1;
             if let Some(g) = &fixed {
-                s.fixed_terms(g, y, h, w, bx);
+                s.fixed_terms(g, tau.as_deref(), y, (h, w), bx);
             }
             let with_fixed = fixed.is_some();
             s.weights_for(&f[..k2 * n], guide(0), with_fixed, y, h, w, bx);
@@ -672,11 +737,19 @@ fn filter_level_any(lv: &Level, p: &Params, s: &mut Scratch) -> (Vec<f32>, Vec<f
 }
 
 impl Scratch {
-    /// The fixed range term's penalty max(0, |g(tap) - g(centre)| - RANGE_TAU)^2 / 2 of
+    /// The fixed range term's penalty max(0, |g(tap) - g(centre)| - tau(centre))^2 / 2 of
     /// every tap inside the image for row `y`, block `bx`, from its guide plane
-    /// ([`range_guide`]), into `fixed`.
+    /// ([`range_guide`]) and its threshold plane ([`range_threshold`]; `None`: RANGE_TAU
+    /// everywhere), into `fixed`.
     #[inline(always)]
-    fn fixed_terms(&mut self, g: &[f32], y: usize, h: usize, w: usize, bx: (usize, usize)) {
+    fn fixed_terms(
+        &mut self,
+        g: &[f32],
+        tau: Option<&[f32]>,
+        y: usize,
+        (h, w): (usize, usize),
+        bx: (usize, usize),
+    ) {
         for t in 0..self.k * self.k {
             let (dy, dx) = tap(self.k, t);
             let Some((x0, x1)) = span(y, dy, dx, h, w, bx) else {
@@ -686,9 +759,20 @@ impl Scratch {
             let gt = &g[row + (x0 as isize + dx) as usize..][..x1 - x0];
             let gc = &g[y * w + x0..][..x1 - x0];
             let pen = &mut self.fixed[t * BLOCK..][x0 - bx.0..x1 - bx.0];
-            for ((p, &a), &c) in pen.iter_mut().zip(gt).zip(gc) {
-                let e = ((a - c).abs() - RANGE_TAU).max(0.0);
-                *p = 0.5 * e * e;
+            match tau {
+                None => {
+                    for ((p, &a), &c) in pen.iter_mut().zip(gt).zip(gc) {
+                        let e = ((a - c).abs() - RANGE_TAU).max(0.0);
+                        *p = 0.5 * e * e;
+                    }
+                }
+                Some(tau) => {
+                    let tc = &tau[y * w + x0..][..x1 - x0];
+                    for (((p, &a), &c), &tau) in pen.iter_mut().zip(gt).zip(gc).zip(tc) {
+                        let e = ((a - c).abs() - tau).max(0.0);
+                        *p = 0.5 * e * e;
+                    }
+                }
             }
         }
     }
@@ -989,6 +1073,7 @@ mod tests {
             upsample: Upsample::Nearest,
             range_opening: RangeOpening::Plain,
             coarse_clamp: false,
+            range_noise: 0.0,
         }
     }
 
@@ -1444,6 +1529,48 @@ mod tests {
         assert!(lum(&out, n, fly) < 41.0);
     }
 
+    /// The threshold from local noise: on a clean bright floor, a one-pixel shadow line 1.7
+    /// stops darker is below RANGE_TAU, so the fixed threshold lets a box kernel fill it
+    /// in; with `range_noise` the line counts as an edge and stays darker.
+    #[test]
+    fn the_noise_threshold_keeps_a_clean_shadow_line_dark() {
+        let (h, w, k) = (16, 16, 5);
+        let n = h * w;
+        let rgb: Vec<f32> = (0..3 * n)
+            .map(|i| if i % w == 8 { 0.3 } else { 1.0 })
+            .collect();
+        let f = vec![vec![0.0; channels(k, false) * n]];
+        let fixed = Params {
+            fixed_range: true,
+            ..params(1, k)
+        };
+        let noise = Params {
+            range_noise: 4.0,
+            ..fixed
+        };
+        let line = 8 * w + 8;
+        let before = lum(&run(&fixed, &rgb, None, &f, h, w), n, line);
+        let after = lum(&run(&noise, &rgb, None, &f, h, w), n, line);
+        assert!(
+            before > 0.84,
+            "the fixed threshold fills the line in: {before}"
+        );
+        assert!(after < 0.75, "the line stays darker: {after}");
+    }
+
+    /// The threshold is 0 on a flat image and RANGE_TAU on a 1-spp-like one (a quarter of
+    /// the pixels bright, the rest black), so noise never reads as an edge.
+    #[test]
+    fn the_noise_threshold_follows_the_noise() {
+        let (h, w) = (12, 20);
+        let flat = range_threshold(&vec![0.5; h * w], h, w, 1.0, 4.0);
+        assert!(flat.iter().all(|&t| t == 0.0), "{flat:?}");
+        let mut rng = Rng(7);
+        let sparse = rng.vec(h * w, |r| if r.uniform() < 0.25 { 4.0 } else { 0.0 });
+        let tau = range_threshold(&sparse, h, w, 1.0, 4.0);
+        assert!(tau.iter().all(|&t| t == RANGE_TAU), "{tau:?}");
+    }
+
     /// Under the aux-guided opening, a 1 px lamp with an emitter's albedo keeps its light
     /// and none reaches its neighbours, while a firefly on the surface and one on a lone
     /// texel (no neighbour on its surface, not an emitter) still spread as they would under
@@ -1522,6 +1649,7 @@ mod tests {
         let free = run(&params(levels, k), &rgb, None, &f, h, w);
         let capped = Params {
             coarse_clamp: true,
+            range_noise: 0.0,
             ..params(levels, k)
         };
         let out = run(&capped, &rgb, None, &f, h, w);
@@ -1630,6 +1758,7 @@ mod tests {
                         .unwrap_or_else(|| panic!("{name}: bad range_opening {o}"))
                 },
                 coarse_clamp: case["coarse_clamp"].as_bool().unwrap_or(false),
+                range_noise: case["range_noise"].as_f64().unwrap_or(0.0) as f32,
             };
             let rgb = json_vec(&case["rgb"]);
             let albedo = (!case["albedo"].is_null()).then(|| json_vec(&case["albedo"]));

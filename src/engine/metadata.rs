@@ -66,6 +66,9 @@ pub struct ModelInfo {
     pub range_opening: RangeOpening,
     /// Whether the level composition caps each coarse correction (`temc.coarse_clamp`).
     pub coarse_clamp: bool,
+    /// The fixed range term's threshold from local noise, K (`temc.range_noise`; optional,
+    /// absent or 0 means the fixed threshold everywhere).
+    pub range_noise: f32,
     /// Flip-ensemble passes a filter runs unless told otherwise (`temc.passes`: 1, 2 or 4;
     /// optional, absent means 1).
     pub passes: usize,
@@ -147,6 +150,7 @@ impl ModelInfo {
         let guide = flag("temc.guide")?;
         let fixed_range = flag("temc.fixed_range")?;
         let coarse_clamp = flag("temc.coarse_clamp")?;
+        let range_noise = range_noise(&raw)?;
         let upsample = named(
             &raw,
             "temc.upsample",
@@ -225,6 +229,7 @@ impl ModelInfo {
             upsample,
             range_opening,
             coarse_clamp,
+            range_noise,
             passes,
             pq_nits_per_unit,
             dataset: get("temc.dataset")?.to_string(),
@@ -251,6 +256,19 @@ impl ModelInfo {
     /// and, with `guide`, two guides.
     pub fn filter_channels(&self) -> usize {
         crate::reconstruct::channels(self.kernel, self.guide)
+    }
+}
+
+/// `temc.range_noise`: absent means 0 (the fixed threshold); else a finite number >= 0.
+fn range_noise(raw: &BTreeMap<String, String>) -> Result<f32, Error> {
+    let Some(v) = raw.get("temc.range_noise") else {
+        return Ok(0.0);
+    };
+    match v.parse::<f32>() {
+        Ok(k) if k.is_finite() && k >= 0.0 => Ok(k),
+        _ => Err(Error::Model(format!(
+            "metadata `temc.range_noise` = {v:?} must be a finite number >= 0"
+        ))),
     }
 }
 
@@ -326,6 +344,7 @@ mod tests {
             ("temc.upsample", "nearest"),
             ("temc.range_opening", "aux"),
             ("temc.coarse_clamp", "1"),
+            ("temc.range_noise", "6.0"),
             ("other.key", "ignored"),
         ]
     }
@@ -347,11 +366,13 @@ mod tests {
         assert_eq!(m.upsample, Upsample::Nearest);
         assert_eq!(m.range_opening, RangeOpening::Aux);
         assert!(m.coarse_clamp);
+        assert_eq!(m.range_noise, 6.0);
         let without = card()
             .into_iter()
-            .filter(|(k, _)| *k != "temc.range_opening");
+            .filter(|(k, _)| !["temc.range_opening", "temc.range_noise"].contains(k));
         let m = ModelInfo::from_props(without).unwrap();
         assert_eq!(m.range_opening, RangeOpening::Plain);
+        assert_eq!(m.range_noise, 0.0);
     }
 
     #[test]
@@ -386,6 +407,9 @@ mod tests {
             ("temc.upsample", Some("cubic")),
             ("temc.range_opening", Some("closed")),
             ("temc.coarse_clamp", Some("yes")),
+            ("temc.range_noise", Some("-1")),
+            ("temc.range_noise", Some("inf")),
+            ("temc.range_noise", Some("six")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

@@ -451,6 +451,7 @@ fn denoise_tile(
         upsample: info.upsample,
         range_opening: info.range_opening,
         coarse_clamp: info.coarse_clamp,
+        range_noise: info.range_noise,
     };
     let refs = filters.levels()?;
     let albedo = info.demodulate.then_some(Packed::plane(&p.albedo));

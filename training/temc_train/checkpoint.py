@@ -129,6 +129,7 @@ class Checkpoint:
         model.upsample = r["upsample"]
         model.range_opening = r["range_opening"]
         model.coarse_clamp = r["coarse_clamp"]
+        model.range_noise = r["range_noise"]
         return model, arch, float(width)
 
     def averaged(self, *others: "Checkpoint") -> "Checkpoint":

@@ -42,7 +42,8 @@ def recon_of(model) -> dict:
             "fixed_range": bool(getattr(model, "fixed_range", d["fixed_range"])),
             "upsample": getattr(model, "upsample", d["upsample"]),
             "range_opening": getattr(model, "range_opening", d["range_opening"]),
-            "coarse_clamp": bool(getattr(model, "coarse_clamp", d["coarse_clamp"]))}
+            "coarse_clamp": bool(getattr(model, "coarse_clamp", d["coarse_clamp"])),
+            "range_noise": float(getattr(model, "range_noise", d["range_noise"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -71,6 +72,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.upsample": recon.get("upsample", "nearest"),
         "temc.range_opening": recon.get("range_opening", "plain"),
         "temc.coarse_clamp": "1" if recon.get("coarse_clamp") else "0",
+        "temc.range_noise": repr(float(recon.get("range_noise", 0.0))),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

@@ -23,6 +23,11 @@ GREY_PULL = 1e-6
 # log-mean at 0.18, keeps noise in the dark from reading as edges.
 RANGE_TAU = 3.0
 RANGE_FLOOR = 0.02
+# The threshold from local noise (docs/reconstruction.md, "Range threshold from local
+# noise"): with `temc.range_noise` = K > 0 each pixel's threshold is min(RANGE_TAU, K * n),
+# n the mean over the RANGE_NOISE_BOX^2 window of |Y - median3(Y)| / (median3(Y) +
+# RANGE_FLOOR) at the exposure: where the image is clean, smaller steps count as edges.
+RANGE_NOISE_BOX = 7
 # The aux-guided opening (docs/reconstruction.md, "Aux-guided opening"): two pixels lie on
 # one surface when the L1 distance of their aux planes is at most AUX_SAME; a pixel alone
 # on its surface among its 3x3 neighbours counts as a feature only with an emitter's albedo
@@ -138,25 +143,44 @@ def range_planes(x, levels, aux=None):
     return out
 
 
-def fixed_range_term(y, kernel, scale=1.0, opened_y=None):
-    """-(max(0, |g(p + t) - g(p)| - RANGE_TAU))^2 / 2 per tap t, g = log2 of the opened
-    luminance at the exposure `scale` plus RANGE_FLOOR: a tap more than 2^RANGE_TAU times
+def range_threshold(y, scale=1.0, noise=0.0):
+    """The fixed range term's threshold in stops per pixel, [N, 1, H, W] (or RANGE_TAU when
+    `noise` is 0): min(RANGE_TAU, noise * n), n the RANGE_NOISE_BOX^2 mean (edges
+    replicated) of the relative deviation |Y - median3(Y)| / (median3(Y) + RANGE_FLOOR) of
+    luminance `y` at the exposure `scale`. A clean region (n near 0) treats a 2x step, a
+    shadow's edge, as an edge; a noisy one keeps RANGE_TAU, so noise never does."""
+    if not noise:
+        return RANGE_TAU
+    v = y.clamp(min=0.0) * scale
+    med = _taps3(v)[:, 0].median(1, keepdim=True).values
+    rel = (v - med).abs() / (med + RANGE_FLOOR)
+    r = RANGE_NOISE_BOX // 2
+    n = F.avg_pool2d(F.pad(rel, (r, r, r, r), mode="replicate"), RANGE_NOISE_BOX, stride=1)
+    return (noise * n).clamp(max=RANGE_TAU)
+
+
+def fixed_range_term(y, kernel, scale=1.0, opened_y=None, noise=0.0):
+    """-(max(0, |g(p + t) - g(p)| - tau(p)))^2 / 2 per tap t, g = log2 of the opened
+    luminance at the exposure `scale` plus RANGE_FLOOR: a tap more than 2^tau times
     brighter or darker than the centre, in a feature of 3x3 px or more, falls off whatever
-    the learned logits say (a lamp 1000x its ceiling weighs e^-24.5 there); fireflies, gone
-    from the opening, still spread. `opened_y`: the opening to use (range_planes), else
-    the plain opening of `y`. Fixed, not learned: no gradient flows through g."""
+    the learned logits say (a lamp 1000x its ceiling weighs e^-24.5 there at tau =
+    RANGE_TAU); fireflies, gone from the opening, still spread. tau is range_threshold
+    (RANGE_TAU unless `noise`, `temc.range_noise`, is set). `opened_y`: the opening to use
+    (range_planes), else the plain opening of `y`. Fixed, not learned: no gradient flows."""
     n, _, h, w = y.shape
     o = opened(y.detach()) if opened_y is None else opened_y.detach()
     g = torch.log2(o.clamp(min=0.0) * scale + RANGE_FLOOR)
     taps = F.unfold(g, kernel, padding=kernel // 2).view(n, kernel * kernel, h, w)
-    excess = ((taps - g).abs() - RANGE_TAU).clamp(min=0.0)
+    excess = ((taps - g).abs() - range_threshold(y.detach(), scale, noise)).clamp(min=0.0)
     return -0.5 * excess * excess
 
 
-def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None):
+def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None,
+                  noise=0.0):
     """(luma weights, chroma weights, luminance, cleaned logits) of one level: the softmax
     over the taps inside, [N, k^2, H, W] each, and the luminance plane the luma weights
-    filter. `opened_y`: the fixed range term's opening (fixed_range_term)."""
+    filter. `opened_y`, `noise`: the fixed range term's opening and noise factor
+    (fixed_range_term)."""
     kk = kernel * kernel
     logits = _clean(logits)
     outside = ~_inside(kernel, x.shape[2], x.shape[3], x)
@@ -166,18 +190,19 @@ def level_weights(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, 
         chroma_l = chroma_l + _range_term(logits[:, 2 * kk + 3 : 2 * kk + 4], kernel)
     y = _lum(x)
     if fixed_range:
-        term = fixed_range_term(y, kernel, scale, opened_y)
+        term = fixed_range_term(y, kernel, scale, opened_y, noise)
         luma_l, chroma_l = luma_l + term, chroma_l + term
     luma_w = torch.softmax(luma_l.masked_fill(outside, float("-inf")), dim=1)
     chroma_w = torch.softmax(chroma_l.masked_fill(outside, float("-inf")), dim=1)
     return luma_w, chroma_w, y, logits
 
 
-def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None):
+def _filter_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None,
+                  noise=0.0):
     """(fy, fc, luma blend logit, chroma blend logit) of one level."""
     kk = kernel * kernel
     luma_w, chroma_w, y, logits = level_weights(x, logits, kernel, guide, fixed_range, scale,
-                                                opened_y)
+                                                opened_y, noise)
     fy = _apply(y, luma_w, kernel)
     fc = _apply(x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk : 2 * kk + 1], logits[:, 2 * kk + 1 : 2 * kk + 2]
@@ -240,7 +265,7 @@ def _recombine(cy, cc):
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
                 fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None,
-                coarse_clamp=False):
+                coarse_clamp=False, range_noise=0.0):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
@@ -249,7 +274,9 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     level's correction to the finer one (UPSAMPLES; `temc.upsample`). `range_opening`
     (RANGE_OPENINGS; `temc.range_opening`): `aux` opens the fixed range term's luminance
     with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level.
-    `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction (_compose)."""
+    `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction (_compose).
+    `range_noise` (`temc.range_noise`): the fixed range term's threshold from local noise
+    (range_threshold; 0: RANGE_TAU everywhere)."""
     if range_opening not in RANGE_OPENINGS:
         raise ValueError(f"range_opening must be one of {RANGE_OPENINGS}, got {range_opening!r}")
     for level, f in enumerate(filters):
@@ -266,7 +293,8 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     for level, f in enumerate(filters):
         if level:
             x = F.avg_pool2d(x, 2)
-        levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level]))
+        levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level],
+                                    range_noise))
     cy, cc = levels[-1][:2]
     for fy, fc, a, b in reversed(levels[:-1]):
         cy = _compose(fy, cy, a, upsample, coarse_clamp)
@@ -300,6 +328,7 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
                       fixed_range=recon.get("fixed_range", False), scale=scale,
                       upsample=recon.get("upsample", "nearest"),
                       range_opening=recon.get("range_opening", "plain"), aux=aux_t,
-                      coarse_clamp=recon.get("coarse_clamp", False))
+                      coarse_clamp=recon.get("coarse_clamp", False),
+                      range_noise=recon.get("range_noise", 0.0))
     out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
     return keep_mean_stage(out, radiance) if keep else out

@@ -12,8 +12,8 @@ import torch
 import torch.nn.functional as F
 
 from temc_train.vectors import recon_vectors
-from temc_train.reconstruct import (LINEAR_MAX, LOGIT_MAX, LUMA, aux_opened, channels, opened, reach,
-                                    reconstruct)
+from temc_train.reconstruct import (LINEAR_MAX, LOGIT_MAX, LUMA, RANGE_TAU, aux_opened, channels, opened,
+                                    range_threshold, reach, reconstruct)
 
 VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
 DOC = json.loads(VECTORS.read_text())
@@ -293,6 +293,28 @@ def test_the_fixed_range_term_lets_a_firefly_spread_and_passes_no_gradient_to_it
     assert float(lum(out)[0, 8, 8]) < 41.0
     out.sum().backward()
     assert torch.isfinite(f.grad).all()
+
+
+def test_the_noise_threshold_keeps_a_clean_shadow_line_dark():
+    # The Rust test of the same name: a one-pixel line 1.7 stops below a clean bright floor
+    # is under RANGE_TAU, so the fixed threshold lets a box kernel fill it in; the threshold
+    # from local noise keeps it darker.
+    rgb = torch.ones(1, 3, 16, 16)
+    rgb[:, :, :, 8] = 0.3
+    f = torch.zeros(1, channels(5), 16, 16)
+    before = float(lum(reconstruct(rgb, None, [f], 5, fixed_range=True))[0, 8, 8])
+    after = float(lum(reconstruct(rgb, None, [f], 5, fixed_range=True, range_noise=4.0))[0, 8, 8])
+    assert before > 0.84 and after < 0.75, (before, after)
+
+
+def test_the_noise_threshold_follows_the_noise():
+    # 0 on a flat image, RANGE_TAU on a 1-spp-like one (a quarter of the pixels bright).
+    flat = range_threshold(torch.full((1, 1, 12, 20), 0.5), 1.0, 4.0)
+    assert bool((flat == 0).all())
+    g = torch.Generator().manual_seed(7)
+    sparse = torch.where(torch.rand(1, 1, 12, 20, generator=g) < 0.25, 4.0, 0.0)
+    assert bool((range_threshold(sparse, 1.0, 4.0) == RANGE_TAU).all())
+    assert range_threshold(sparse, 1.0, 0.0) == RANGE_TAU
 
 
 def _surface_aux(h, w):

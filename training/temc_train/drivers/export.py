@@ -74,6 +74,9 @@ def main() -> None:
     ap.add_argument("--coarse-clamp", type=int, choices=(0, 1),
                     help="temc.coarse_clamp: cap each coarse correction (default: what the model "
                     "trained with); to measure the other without retraining")
+    ap.add_argument("--range-noise", type=float,
+                    help="temc.range_noise: the fixed range term's threshold from local noise "
+                    "(default: what the model trained with); to measure others without retraining")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
@@ -93,7 +96,8 @@ def main() -> None:
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
     chosen = {"upsample": a.upsample, "range_opening": a.range_opening,
-              "coarse_clamp": None if a.coarse_clamp is None else bool(a.coarse_clamp)}
+              "coarse_clamp": None if a.coarse_clamp is None else bool(a.coarse_clamp),
+              "range_noise": a.range_noise}
     recon = dict(recon_of(model), **{k: v for k, v in chosen.items() if v is not None})
     # Trained weights carry their measured reach; random ones the theoretical bound.
     overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None

@@ -60,8 +60,9 @@ from .distributed import Group
 
 
 # The reconstruction settings a resumed run may change (recon_settings' keys): the fixed
-# range term, the composition's upsampling, the range term's opening, the coarse clamp.
-SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp")
+# range term, the composition's upsampling, the range term's opening, the coarse clamp, the
+# range term's threshold from local noise.
+SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp", "range_noise")
 
 
 def recon_settings(a) -> dict:
@@ -69,7 +70,8 @@ def recon_settings(a) -> dict:
     return {"levels": a.levels, "kernel": a.kernel, "split": a.split,
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
             "fixed_range": bool(a.fixed_range), "upsample": a.upsample,
-            "range_opening": a.range_opening, "coarse_clamp": bool(a.coarse_clamp)}
+            "range_opening": a.range_opening, "coarse_clamp": bool(a.coarse_clamp),
+            "range_noise": float(a.range_noise)}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -83,7 +85,8 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
                        fixed_range=rs.get("fixed_range", False),
                        upsample=rs.get("upsample", "nearest"),
                        range_opening=rs.get("range_opening", "plain"), aux=xs[2],
-                       coarse_clamp=rs.get("coarse_clamp", False))
+                       coarse_clamp=rs.get("coarse_clamp", False),
+                       range_noise=rs.get("range_noise", 0.0))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
@@ -645,6 +648,10 @@ def arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--coarse-clamp", type=int, choices=(0, 1), default=0,
                     help="cap each coarse level's correction at COARSE_GAIN times the finer "
                          "value (docs/reconstruction.md, step 4); a run may switch it at any step")
+    ap.add_argument("--range-noise", type=float, default=0.0,
+                    help="the fixed range term's threshold from local noise, K of "
+                         "temc.range_noise (0: RANGE_TAU everywhere; docs/reconstruction.md, "
+                         "\"Range threshold from local noise\"); a run may switch it at any step")
     ap.add_argument("--blend-logit", type=float, default=None,
                     help="on resume, set the finest level's blend biases to this once (a grown "
                          "run starts them at GROWN_BLEND_LOGIT, where lr-limited steps leave them "

@@ -55,10 +55,12 @@ def _spread(d, kernel):
     return box(d / box(ones))
 
 
-def _conserving_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+def _conserving_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0, opened_y=None,
+                      noise=0.0):
     """reconstruct._filter_level plus the spread of what each input pixel did not hand on."""
     kk = kernel * kernel
-    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale)
+    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale,
+                                                   opened_y, noise)
     fy = rc._apply(y, luma_w, kernel) + _spread((1 - _handed_on(luma_w, kernel)) * y, kernel)
     fc = rc._apply(x, chroma_w, kernel) + _spread((1 - _handed_on(chroma_w, kernel)) * x, kernel)
     return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]
@@ -72,11 +74,13 @@ def _splat(d, weights, kernel):
     return F.fold(cols, (h, w), kernel, padding=kernel // 2)
 
 
-def _conserving_own_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0):
+def _conserving_own_level(x, logits, kernel, guide=False, fixed_range=False, scale=1.0,
+                          opened_y=None, noise=0.0):
     """As _conserving_level, the unhanded light splatted by the pixel's own kernel (toward
     the neighbours its guides call alike) instead of a box."""
     kk = kernel * kernel
-    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale)
+    luma_w, chroma_w, y, logits = rc.level_weights(x, logits, kernel, guide, fixed_range, scale,
+                                                   opened_y, noise)
     fy = rc._apply(y, luma_w, kernel) + _splat((1 - _handed_on(luma_w, kernel)) * y, luma_w, kernel)
     fc = rc._apply(x, chroma_w, kernel) + _splat((1 - _handed_on(chroma_w, kernel)) * x, chroma_w, kernel)
     return fy, fc, logits[:, 2 * kk:2 * kk + 1], logits[:, 2 * kk + 1:2 * kk + 2]

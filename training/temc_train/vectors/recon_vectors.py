@@ -22,7 +22,7 @@ SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
 def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
-          fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False):
+          fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False, range_noise=0.0):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -32,7 +32,8 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
     ]
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
-                upsample=upsample, range_opening="plain", coarse_clamp=coarse_clamp, rgb=rgb,
+                upsample=upsample, range_opening="plain", coarse_clamp=coarse_clamp,
+                range_noise=range_noise, rgb=rgb,
                 albedo=albedo if demodulate else None, aux=None, filters=filters)
 
 
@@ -102,7 +103,8 @@ def cases():
     c = _case("bilinear_lamp_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, upsample="bilinear")
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
-    return out + aux_opening_cases(rng) + coarse_clamp_cases(rng) + chroma_cap_cases(rng)
+    return (out + aux_opening_cases(rng) + coarse_clamp_cases(rng) + chroma_cap_cases(rng)
+            + range_noise_cases(rng))
 
 
 def coarse_clamp_cases(rng):
@@ -170,7 +172,7 @@ def run(case, dtype):
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
                       case["fixed_range"], case["exposure"], case["upsample"],
-                      case["range_opening"], aux, case["coarse_clamp"])
+                      case["range_opening"], aux, case["coarse_clamp"], case["range_noise"])
     return out[0].double().numpy()
 
 
@@ -200,6 +202,24 @@ def chroma_cap_cases(rng):
     c["filters"][0][13] = LOGIT_MAX
     c["filters"][0][18:20] = LOGIT_MAX
     return [c]
+
+
+def range_noise_cases(rng):
+    """The fixed range term's threshold from local noise (`temc.range_noise`): a clean bright
+    floor crossed by a one-pixel shadow line 1.7 stops darker (a clean image: the line is an
+    edge), and the shipped recipe of a 3-level model with it on noisy random radiance."""
+    c = _case("range_noise_shadow_16x16_L2_k3", rng, 16, 16, 2, 3, sd=0.5, fixed_range=True,
+              exposure=0.2, range_noise=4.0)
+    c["rgb"] = np.round(5.0 + 0.01 * rng.random((3, 16, 16)), 4)
+    c["rgb"][:, :, 8] = 1.5
+    out = [c]
+    c = _case("range_noise_full_16x16_L3_k5", rng, 16, 16, 3, 5, sd=1.0, guide=True,
+              fixed_range=True, exposure=0.7, upsample="bilinear", coarse_clamp=True,
+              range_noise=4.0)
+    c.update(range_opening="aux", aux=_aux(rng, 16, 16))
+    c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.1, 30.0, 1.0)
+    out.append(c)
+    return out
 
 
 def main(argv=None):
