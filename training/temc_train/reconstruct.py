@@ -313,6 +313,14 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     aux planes [H, W, 7] (color.aux_channels, moved last), `scale` the input scale; the
     image is mirror-padded to the alignment (32) and the result cropped back, then (with
     `keep`, as the core does) rescaled by the keep-mean stage. Returns [H, W, 3] linear."""
+    return denoise_variants(model, [recon], noisy, aux, scale, keep)[0]
+
+
+@torch.no_grad()
+def denoise_variants(model, recons: list, noisy: np.ndarray, aux: np.ndarray, scale: float,
+                     keep: bool = True) -> list:
+    """denoise_image under each reconstruction setting of `recons`, the network run once
+    (for probes that compare fixed functions without retraining)."""
     hsv, _ = color.encode(noisy, scale)
     h, w = noisy.shape[:2]
     pad = ((0, (-h) % 32), (0, (-w) % 32), (0, 0))
@@ -323,12 +331,15 @@ def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale:
     hsv_t, aux_t = planes(hsv), planes(aux.astype(np.float32))
     radiance = color.sanitize_rgb(noisy).astype(np.float32)
     filters = model.eval()(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
-    out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"], recon["demodulate"],
-                      recon["eps"], guide=recon.get("guide", False),
-                      fixed_range=recon.get("fixed_range", False), scale=scale,
-                      upsample=recon.get("upsample", "nearest"),
-                      range_opening=recon.get("range_opening", "plain"), aux=aux_t,
-                      coarse_clamp=recon.get("coarse_clamp", False),
-                      range_noise=recon.get("range_noise", 0.0))
-    out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
-    return keep_mean_stage(out, radiance) if keep else out
+    outs = []
+    for recon in recons:
+        out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"],
+                          recon["demodulate"], recon["eps"], guide=recon.get("guide", False),
+                          fixed_range=recon.get("fixed_range", False), scale=scale,
+                          upsample=recon.get("upsample", "nearest"),
+                          range_opening=recon.get("range_opening", "plain"), aux=aux_t,
+                          coarse_clamp=recon.get("coarse_clamp", False),
+                          range_noise=recon.get("range_noise", 0.0))
+        out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
+        outs.append(keep_mean_stage(out, radiance) if keep else out)
+    return outs

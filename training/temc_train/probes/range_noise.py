@@ -15,13 +15,11 @@ import json
 import os
 
 import numpy as np
-import torch
 
 from .. import color, evaluate as ev
 from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
-from ..keep_mean import stage as keep_mean_stage
-from ..reconstruct import reconstruct
+from ..reconstruct import denoise_variants
 
 
 def scenes(root, split, prefix, limit):
@@ -33,32 +31,13 @@ def scenes(root, split, prefix, limit):
     return done[:limit]
 
 
-@torch.no_grad()
 def image_errors(model, recon, layers, ref, ks):
-    """RelMSE of one noisy render reconstructed with each K of `ks` (the network runs once)."""
-    noisy = layers["color"]
+    """RelMSE of one noisy render reconstructed with each K of `ks` (the network runs once),
+    under the shipped fixed range term (aux-guided opening)."""
     aux = np.moveaxis(color.aux_channels(layers["albedo"], layers["normal"], layers["depth"]), 0, -1)
-    scale = auto_input_scale(noisy)
-    hsv, _ = color.encode(noisy, scale)
-    h, w = noisy.shape[:2]
-    pad = ((0, (-h) % 32), (0, (-w) % 32), (0, 0))
-
-    def planes(x):
-        return torch.from_numpy(np.moveaxis(np.pad(x, pad, mode="reflect"), -1, 0)[None].copy())
-
-    hsv_t, aux_t = planes(hsv), planes(aux.astype(np.float32))
-    radiance = color.sanitize_rgb(noisy).astype(np.float32)
-    filters = model(hsv_t[:, :2], hsv_t[:, 2:], aux_t)
-    out = []
-    for k in ks:
-        img = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"],
-                          recon["demodulate"], recon["eps"], guide=recon.get("guide", False),
-                          fixed_range=True, scale=scale, upsample=recon.get("upsample", "nearest"),
-                          range_opening="aux", aux=aux_t,
-                          coarse_clamp=recon.get("coarse_clamp", False), range_noise=k)
-        img = keep_mean_stage(np.moveaxis(img[0].numpy(), 0, -1)[:h, :w], radiance)
-        out.append(ev.relmse(img, ref))
-    return out
+    recons = [dict(recon, fixed_range=True, range_opening="aux", range_noise=k) for k in ks]
+    images = denoise_variants(model, recons, layers["color"], aux, auto_input_scale(layers["color"]))
+    return [ev.relmse(img, ref) for img in images]
 
 
 def main(argv=None):
