@@ -30,13 +30,15 @@ const GREY_PULL: f32 = 1.0e-6;
 
 /// The most floats per window pixel that [`reconstruct`] holds besides its inputs and its
 /// [3, H, W] output (for memory budgets): while filtering, the demodulated copy 3, the
-/// level-0 luminance 1, fy and fc 4, and the aux-guided opening's plane 1 (while it is
-/// made, its links, 6 bytes a pixel, and two planes stand in for fy and fc); coarser levels
-/// add a third of the last at most, after the luminance plane is freed; the per-row
-/// weights are k^2 x 128 floats. While composing level 0 (multi-level models): fy and fc 4,
-/// the composed level 1 one, the three chroma corrections 3, the sigmoid of a blend 1, the
-/// correction being made 1 and its coarse detail a quarter: 10.25.
-pub const SCRATCH_PLANES: f64 = 10.25;
+/// level-0 luminance 1, fy and fc 4, the aux-guided opening's plane 1, the fixed range
+/// term's guide 1 and its threshold from local noise 1 (while the opening is made, its
+/// links, 6 bytes a pixel, and two planes stand in for fy and fc; while the threshold is
+/// made, three): 11; coarser levels add a third of the last at most, after the luminance
+/// plane is freed; the per-row weights are k^2 x 128 floats. While composing level 0
+/// (multi-level models): fy and fc 4, the composed level 1 one, the three chroma
+/// corrections 3, the sigmoid of a blend 1, the correction being made 1 and its coarse
+/// detail a quarter: 10.25.
+pub const SCRATCH_PLANES: f64 = 11.0;
 
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
