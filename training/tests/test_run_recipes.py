@@ -2,7 +2,9 @@
 through scripts/train-gpu on a lent GPU) ask for the network and the reconstruction each
 run's checkpoint holds. train.py switches a fixed function (train.SWITCHABLE) to whatever
 the flags say, so a flag left out would go on training the shipped weights without the
-fence they ship with, and record the switch in the checkpoint."""
+fence they ship with, and record the switch in the checkpoint. A recipe may switch a fixed
+function to the setting its run ships with (ship.SHIP_RECON and FILE_RECON): training as
+the model runs, on purpose."""
 
 import os
 import re
@@ -11,7 +13,7 @@ import shlex
 import pytest
 
 from temc_train.checkpoint import Checkpoint
-from temc_train.drivers import train
+from temc_train.drivers import ship, train
 
 ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
 SCRIPTS = os.path.join(ROOT, "scripts")
@@ -91,4 +93,17 @@ def test_recipe_matches_its_checkpoint(source, run, args):
     assert (a.arch, a.width) == (ck.arch, ck.width)
     wanted = train.recon_settings(a)
     held = {k: ck.recon.get(k) for k in wanted}
-    assert wanted == held, f"{source} resumes {run} with {wanted}, its checkpoint holds {held}"
+    shipped = shipped_recon(run)
+    differ = {k for k in wanted if wanted[k] != held[k]}
+    switched = {k for k in differ if k in train.SWITCHABLE and k in shipped and wanted[k] == shipped[k]}
+    assert differ == switched, (f"{source} resumes {run} with {wanted}, its checkpoint holds "
+                                f"{held} and it ships with {shipped}")
+
+
+def shipped_recon(run: str) -> dict:
+    """The reconstruction settings a run's model files ship with ({} for a run that ships
+    none; the files of one run must agree)."""
+    files = [f for f, (r, *_) in ship.SHIPPED.items() if r == run]
+    recons = [{**ship.SHIP_RECON, **ship.FILE_RECON.get(f, {})} for f in files]
+    assert all(r == recons[0] for r in recons), f"{run}'s files ship with {recons}"
+    return recons[0] if recons else {}
