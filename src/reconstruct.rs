@@ -593,6 +593,16 @@ fn box_mean(x: &[f32], h: usize, w: usize, side: usize) -> Vec<f32> {
     out
 }
 
+/// max(0, |tap - centre| - tau)^2 / 2 into `pen`, pixel by pixel (the fixed range term's
+/// penalty; `taus` per centre pixel, or RANGE_TAU repeated: one loop, monomorphised twice).
+#[inline(always)]
+fn penalties(pen: &mut [f32], taps: &[f32], centres: &[f32], taus: impl Iterator<Item = f32>) {
+    for (((p, &a), &c), tau) in pen.iter_mut().zip(taps).zip(centres).zip(taus) {
+        let e = ((a - c).abs() - tau).max(0.0);
+        *p = 0.5 * e * e;
+    }
+}
+
 /// Reusable per-call buffers: the weights of every tap for one block of one row.
 struct Scratch {
     k: usize,
@@ -762,19 +772,8 @@ impl Scratch {
             let gc = &g[y * w + x0..][..x1 - x0];
             let pen = &mut self.fixed[t * BLOCK..][x0 - bx.0..x1 - bx.0];
             match tau {
-                None => {
-                    for ((p, &a), &c) in pen.iter_mut().zip(gt).zip(gc) {
-                        let e = ((a - c).abs() - RANGE_TAU).max(0.0);
-                        *p = 0.5 * e * e;
-                    }
-                }
-                Some(tau) => {
-                    let tc = &tau[y * w + x0..][..x1 - x0];
-                    for (((p, &a), &c), &tau) in pen.iter_mut().zip(gt).zip(gc).zip(tc) {
-                        let e = ((a - c).abs() - tau).max(0.0);
-                        *p = 0.5 * e * e;
-                    }
-                }
+                None => penalties(pen, gt, gc, std::iter::repeat(RANGE_TAU)),
+                Some(tau) => penalties(pen, gt, gc, tau[y * w + x0..][..x1 - x0].iter().copied()),
             }
         }
     }

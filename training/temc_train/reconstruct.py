@@ -306,6 +306,17 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     return out.clamp(0.0, 1.0 if ldr else LINEAR_MAX)
 
 
+def options(recon: dict) -> dict:
+    """reconstruct's keyword settings from a recon dict (a checkpoint's or a model's; each
+    absent key at its default): the one place that maps the two, so a new setting is
+    threaded once."""
+    return {"guide": recon.get("guide", False), "fixed_range": recon.get("fixed_range", False),
+            "upsample": recon.get("upsample", "nearest"),
+            "range_opening": recon.get("range_opening", "plain"),
+            "coarse_clamp": recon.get("coarse_clamp", False),
+            "range_noise": recon.get("range_noise", 0.0)}
+
+
 @torch.no_grad()
 def denoise_image(model, recon: dict, noisy: np.ndarray, aux: np.ndarray, scale: float,
                   keep: bool = True) -> np.ndarray:
@@ -334,12 +345,8 @@ def denoise_variants(model, recons: list, noisy: np.ndarray, aux: np.ndarray, sc
     outs = []
     for recon in recons:
         out = reconstruct(planes(radiance), aux_t[:, :3], filters, recon["kernel"],
-                          recon["demodulate"], recon["eps"], guide=recon.get("guide", False),
-                          fixed_range=recon.get("fixed_range", False), scale=scale,
-                          upsample=recon.get("upsample", "nearest"),
-                          range_opening=recon.get("range_opening", "plain"), aux=aux_t,
-                          coarse_clamp=recon.get("coarse_clamp", False),
-                          range_noise=recon.get("range_noise", 0.0))
+                          recon["demodulate"], recon["eps"], scale=scale, aux=aux_t,
+                          **options(recon))
         out = np.moveaxis(out[0].numpy(), 0, -1)[:h, :w]
         outs.append(keep_mean_stage(out, radiance) if keep else out)
     return outs

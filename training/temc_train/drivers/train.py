@@ -54,7 +54,7 @@ from .. import data
 from ..checkpoint import CHECKPOINT_LIMIT, Checkpoint  # noqa: F401  (CHECKPOINT_LIMIT: re-exported)
 from ..loss import ALPHA, noise2noise_loss, training_loss
 from ..models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params  # noqa: F401
-from ..reconstruct import RANGE_OPENINGS, UPSAMPLES, reconstruct
+from ..reconstruct import RANGE_OPENINGS, UPSAMPLES, options as recon_options, reconstruct
 from . import shard
 from .distributed import Group
 
@@ -81,12 +81,7 @@ def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
     with amp:
         filters = model(*xs[:3])
     return reconstruct(xs[3], xs[4], [f.float() for f in filters], rs["kernel"], rs["demodulate"],
-                       rs["eps"], guide=rs.get("guide", False),
-                       fixed_range=rs.get("fixed_range", False),
-                       upsample=rs.get("upsample", "nearest"),
-                       range_opening=rs.get("range_opening", "plain"), aux=xs[2],
-                       coarse_clamp=rs.get("coarse_clamp", False),
-                       range_noise=rs.get("range_noise", 0.0))
+                       rs["eps"], aux=xs[2], **recon_options(rs))
 
 
 def validate(model, val, alpha, rs, rel=0.0, batch=8, device="cpu") -> float:
