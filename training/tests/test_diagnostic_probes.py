@@ -1,6 +1,7 @@
 """The diagnostic probes: reference_noise.py on a data set whose renders are Gaussian draws
 of known variance (every noisy input must come out at ref_spp / spp + 1 reference
-variances), and worst_pixels.py on an image with one kept dot."""
+variances), worst_pixels.py on an image with one kept dot, and constants.py's variants
+(set inside their block only, unknown names refused)."""
 
 import json
 
@@ -50,3 +51,21 @@ def test_worst_pixels_finds_a_kept_firefly():
     assert abs(worst_pixels.pixel_errors(x, ref).mean() - ev.relmse(x, ref)) < 1e-12
     (pixel, share), *_ = worst_pixels.worst(x, ref, 3)
     assert pixel == (5, 7) and share > 0.99
+
+
+def test_a_constants_variant_is_set_only_inside_its_block_and_unknown_names_are_refused():
+    from temc_train import keep_mean, reconstruct
+    from temc_train.probes import constants
+
+    variant = constants.parse_variant("reconstruct.COARSE_GAIN=2;keep_mean.BLOCK=32")
+    before = (reconstruct.COARSE_GAIN, keep_mean.BLOCK)
+    with constants.patched(variant):
+        assert (reconstruct.COARSE_GAIN, keep_mean.BLOCK) == (2.0, 32)
+        assert isinstance(keep_mean.BLOCK, int)  # a block size stays an int
+    assert (reconstruct.COARSE_GAIN, keep_mean.BLOCK) == before
+    for bad in ("reconstruct.NO_SUCH=1", "numpy.pi=3", "reconstruct.RANGE_OPENINGS=1"):
+        try:
+            constants.parse_variant(bad)
+        except SystemExit:
+            continue
+        raise AssertionError(f"{bad} was accepted")

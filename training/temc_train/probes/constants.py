@@ -1,0 +1,122 @@
+"""What changing one fixed constant of the reconstruction or of keep-mean would do to
+accuracy, without retraining: each image of a data split through a checkpoint's network
+and the reconstruction it ships with (ship.SHIP_RECON over the checkpoint's own), once with
+the constants as they are and once per variant, keep-mean included. Prints, per spp, the
+geometric mean over the images of RelMSE with the variant / RelMSE as shipped, and the
+worst image's ratio.
+
+    python -m temc_train.probes.constants --data ../data/cycles-family \\
+        --checkpoint runs/temc2-w0.125-l3/checkpoint.pt \\
+        --set reconstruct.COARSE_GAIN=0.5 --set reconstruct.COARSE_GAIN=2
+    python -m temc_train.probes.constants --data ../data/spectral-v2 --prefix holdout \\
+        --spp 4,16,64 --checkpoint runs/temc2-w0.125-l3/checkpoint.pt \\
+        --set reconstruct.COARSE_GAIN=0.5
+
+A variant is `MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]`, MODULE one of `reconstruct` and
+`keep_mean`, NAME an existing numeric constant there. The Rust core has its own copies:
+a variant worth shipping is a contract change (docs/contracts.md), not a file edit here. A
+variant that leaves every image unchanged ends the probe with an error after the table (the
+constant never binds on these images, or is not read where the probe looks, e.g. a default
+argument bound at import), so a ratio of exactly 1 is never a silent no-op.
+"""
+
+import argparse
+import contextlib
+import os
+
+import numpy as np
+
+from .. import color, evaluate as ev, keep_mean, reconstruct
+from ..checkpoint import Checkpoint
+from ..data import auto_input_scale
+from ..drivers.ship import SHIP_RECON
+from .range_noise import scenes
+
+MODULES = {"reconstruct": reconstruct, "keep_mean": keep_mean}
+
+
+def parse_variant(text: str) -> list:
+    """`MODULE.NAME=VALUE;...` as [(module, name, value)]; refuses unknown names."""
+    out = []
+    for item in text.split(";"):
+        key, _, value = item.partition("=")
+        mod_name, _, name = key.strip().partition(".")
+        mod = MODULES.get(mod_name)
+        if mod is None or not isinstance(getattr(mod, name, None), (int, float)):
+            raise SystemExit(f"--set {item!r}: not a numeric constant of "
+                             f"{' or '.join(MODULES)}")
+        kind = type(getattr(mod, name))  # an int constant (a block size) stays an int
+        out.append((mod, name, kind(float(value))))
+    return out
+
+
+@contextlib.contextmanager
+def patched(assignments: list):
+    """The constants set for the duration of the block, restored after it."""
+    old = [(mod, name, getattr(mod, name)) for mod, name, _ in assignments]
+    try:
+        for mod, name, value in assignments:
+            setattr(mod, name, value)
+        yield
+    finally:
+        for mod, name, value in old:
+            setattr(mod, name, value)
+
+
+def image_errors(model, recon, layers, ref, variants):
+    """RelMSE of one noisy render as shipped, then under each variant; and the images."""
+    aux = np.moveaxis(color.aux_channels(layers["albedo"], layers["normal"], layers["depth"]), 0, -1)
+    scale = auto_input_scale(layers["color"])
+    images = []
+    for assignments in [[]] + variants:
+        with patched(assignments):
+            images += reconstruct.denoise_variants(model, [recon], layers["color"], aux, scale)
+    return [ev.relmse(img, ref) for img in images], images
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--checkpoint", required=True)
+    ap.add_argument("--set", action="append", required=True, dest="variants",
+                    help="a variant: MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]; repeat for more")
+    ap.add_argument("--spp", default="1,4,16,64")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--prefix", default="", help="only scenes whose names start with this")
+    ap.add_argument("--limit", type=int, default=None, help="at most this many scenes")
+    a = ap.parse_args(argv)
+    variants = [parse_variant(v) for v in a.variants]
+    spps = [int(s) for s in a.spp.split(",")]
+    ck = Checkpoint.read(a.checkpoint)
+    model, recon = ck.build()[0].eval(), {**ck.recon, **SHIP_RECON}
+    ratios = {(s, i): [] for s in spps for i in range(len(variants))}
+    moved = [False] * len(variants)
+    recs = scenes(a.data, a.split, a.prefix, a.limit)
+    for rec in recs:
+        d = os.path.join(a.data, rec["dir"])
+        ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
+        for spp, name in rec["noisy"]:
+            if spp not in spps:
+                continue
+            (base, *rest), (img0, *imgs) = image_errors(
+                model, recon, ev.read_exr(os.path.join(d, name)), ref, variants)
+            for i, (e, img) in enumerate(zip(rest, imgs)):
+                ratios[(spp, i)].append(e / base)
+                moved[i] |= not np.array_equal(img, img0)
+    print(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
+          f"RelMSE with the variant / as shipped: geometric mean (worst image)")
+    print("| spp | " + " | ".join(a.variants) + " |")
+    print("|---:|" + "---:|" * len(variants))
+    for s in (s for s in spps if ratios[(s, 0)]):
+        cells = [f"{np.exp(np.mean(np.log(ratios[(s, i)]))):.4f} ({max(ratios[(s, i)]):.3f})"
+                 for i in range(len(variants))]
+        print(f"| {s} | " + " | ".join(cells) + " |")
+    still = [v for v, m in zip(a.variants, moved) if not m]
+    if still:
+        raise SystemExit(f"--set {', '.join(still)}: changed no image (it never binds on "
+                         "these images, or the probe's path does not read it): its ratios "
+                         "above measure nothing")
+
+
+if __name__ == "__main__":
+    main()
