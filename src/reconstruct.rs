@@ -67,8 +67,12 @@ pub const EMITTER_ALBEDO: f32 = 0.95;
 
 /// With the coarse clamp (`temc.coarse_clamp`), a coarse level's correction may add at
 /// most this multiple of the finer level's own value: a firefly a coarse level spreads
-/// cannot raise its dark surroundings into a block.
+/// cannot raise its dark surroundings into a block. A model may name its own
+/// (`temc.coarse_gain`, [`Params::coarse_gain`]).
 pub const COARSE_GAIN: f32 = 1.0;
+
+/// The largest window radius the coarse clamp may cap against (`temc.coarse_radius`).
+pub const COARSE_RADIUS_MAX: usize = 8;
 
 /// The chroma composition's common cap (step 4): a coarse correction leaves every channel
 /// at least this share of its fine value, so it cannot swing a pixel's hue to one primary.
@@ -135,9 +139,18 @@ pub struct Params {
     pub exposure: f32,
     /// What the fixed range term opens (`temc.range_opening`); `Aux` needs the aux planes.
     pub range_opening: RangeOpening,
-    /// Each coarse correction is capped at [`COARSE_GAIN`] times the finer value it is
-    /// added to (`temc.coarse_clamp`).
+    /// Each coarse correction is capped at `coarse_gain` times the finer value it is added
+    /// to (`temc.coarse_clamp`).
     pub coarse_clamp: bool,
+    /// The coarse clamp's gain (`temc.coarse_gain`; [`COARSE_GAIN`] in files without it),
+    /// finite and > 0.
+    pub coarse_gain: f32,
+    /// With the coarse clamp, cap against the mean of the finer values over the
+    /// (2 r + 1)^2 window, edges replicated, instead of each pixel's own
+    /// (`temc.coarse_radius`; 0 in files without it; at most [`COARSE_RADIUS_MAX`]). A
+    /// sparse dark pixel beside lit ones is then filled, a firefly's dark surroundings
+    /// stay capped.
+    pub coarse_radius: usize,
     /// How the composition brings a coarse level's correction to the finer one
     /// (`temc.upsample`).
     pub upsample: Upsample,
@@ -243,7 +256,10 @@ pub fn reconstruct(
         let (hl, wl) = (h >> l, w >> l);
         let n = hl * wl;
         let f = filters[l];
-        let how = (p.upsample, p.coarse_clamp);
+        let how = (
+            p.upsample,
+            p.coarse_clamp.then_some((p.coarse_gain, p.coarse_radius)),
+        );
         let dy = correction(&fy, &cy, &f[2 * k2 * n..][..n], hl, wl, how);
         fy.iter_mut().zip(&dy).for_each(|(v, d)| *v += d);
         let dc: Vec<Vec<f32>> = (0..3)
@@ -305,6 +321,14 @@ fn validate(
             }
             None => return bad("demodulation needs an albedo".into()),
         }
+    }
+    let gain_ok = p.coarse_gain.is_finite() && p.coarse_gain > 0.0;
+    if p.coarse_clamp && !(gain_ok && p.coarse_radius <= COARSE_RADIUS_MAX) {
+        return bad(format!(
+            "coarse_gain must be finite and > 0 and coarse_radius at most {COARSE_RADIUS_MAX}, \
+             got {} and {}",
+            p.coarse_gain, p.coarse_radius
+        ));
     }
     if filters.len() != p.levels {
         return bad(format!(
@@ -896,22 +920,27 @@ fn add_chroma_correction(fc: &mut [f32], dc: &[Vec<f32>], n: usize) {
     }
 }
 
-/// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, each capped at [`COARSE_GAIN`]
-/// times the fine value with the coarse clamp: what step 4 of the spec adds to `fine`.
+/// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, with the coarse clamp
+/// `Some((gain, radius))` each capped at `gain` times the fine value (radius 0) or its
+/// (2 radius + 1)^2 mean: what step 4 of the spec adds to `fine`.
 fn correction(
     fine: &[f32],
     coarse: &[f32],
     blend: &[f32],
     h: usize,
     w: usize,
-    (up, clamp): (Upsample, bool),
+    (up, clamp): (Upsample, Option<(f32, usize)>),
 ) -> Vec<f32> {
-    let cap = |f: f32, c: f32| {
-        if clamp {
-            c.min(COARSE_GAIN * f.max(0.0))
-        } else {
-            c
+    let means = match clamp {
+        Some((_, r)) if r > 0 => {
+            let lit: Vec<f32> = fine.iter().map(|v| v.max(0.0)).collect();
+            Some(box_mean(&lit, h, w, 2 * r + 1))
         }
+        _ => None,
+    };
+    let cap = |i: usize, f: f32, c: f32| match clamp {
+        Some((gain, _)) => c.min(gain * means.as_ref().map_or(f.max(0.0), |m| m[i])),
+        None => c,
     };
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
         .expect("one coarse plane");
@@ -927,7 +956,7 @@ fn correction(
         Upsample::Nearest => Zip::indexed(&mut out)
             .and(fine)
             .and(blend)
-            .for_each(|(y, x), o, &f, &b| *o = b * cap(f, detail[[y / 2, x / 2]])),
+            .for_each(|(y, x), o, &f, &b| *o = b * cap(y * w + x, f, detail[[y / 2, x / 2]])),
         Upsample::Bilinear => {
             let (ys, xs) = (bilinear_taps(h), bilinear_taps(w));
             Zip::indexed(&mut out)
@@ -937,7 +966,7 @@ fn correction(
                     let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
                     // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
                     let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
-                    *o = b * cap(f, 0.75 * row(y0) + 0.25 * row(y1));
+                    *o = b * cap(y * w + x, f, 0.75 * row(y0) + 0.25 * row(y1));
                 })
         }
     }
@@ -1074,6 +1103,8 @@ mod tests {
             upsample: Upsample::Nearest,
             range_opening: RangeOpening::Plain,
             coarse_clamp: false,
+            coarse_gain: COARSE_GAIN,
+            coarse_radius: 0,
             range_noise: 0.0,
         }
     }
@@ -1659,6 +1690,59 @@ mod tests {
         assert!((0..n).any(|i| ratio(&free, i) > 10.0), "the block it caps");
     }
 
+    /// The cap against a local mean (`temc.coarse_radius`): on a floor at 1-spp-like
+    /// sparsity (most pixels black in the fine level's own result, identity kernels), a
+    /// pixel's own value caps a black pixel at black, so the coarse level cannot fill it;
+    /// its 5x5 mean lets it. A lone firefly's dark surroundings outside its own 5x5 stay
+    /// capped at twice the dark level (their mean is dark too).
+    #[test]
+    fn the_coarse_cap_against_a_local_mean_fills_sparse_pixels() {
+        let (h, w, k, levels) = (16, 16, 3, 2);
+        let n = h * w;
+        let identity_fine = |l: usize| {
+            let nl = (h >> l) * (w >> l);
+            let mut f = vec![0.0; channels(k, false) * nl];
+            if l == 0 {
+                f[..2 * k * k * nl].fill(-LOGIT_MAX);
+                f[4 * nl..5 * nl].fill(LOGIT_MAX); // luma centre tap
+                f[13 * nl..14 * nl].fill(LOGIT_MAX); // chroma centre tap
+            }
+            f[2 * k * k * nl..].fill(LOGIT_MAX); // blends open
+            f
+        };
+        let f: Vec<Vec<f32>> = (0..levels).map(identity_fine).collect();
+        // One lit pixel in every other 2x2 block: the blocks alternate 1 and 0 at level 1,
+        // whose box kernel brings a black block up to about 0.5.
+        let even = |v: usize| v.is_multiple_of(2);
+        let lit = |y: usize, x: usize| even(y) && even(x) && even(y / 2 + x / 2);
+        let sparse: Vec<f32> = (0..3 * n)
+            .map(|i| if lit(i % n / w, i % n % w) { 4.0 } else { 0.0 })
+            .collect();
+        let capped = |r| Params {
+            coarse_clamp: true,
+            coarse_radius: r,
+            ..params(levels, k)
+        };
+        let black = w + 2; // (1, 2), in the black block (0, 1)
+        let own = run(&capped(0), &sparse, None, &f, h, w);
+        let mean = run(&capped(2), &sparse, None, &f, h, w);
+        assert!(lum(&own, n, black) < 1e-6, "{}", lum(&own, n, black));
+        assert!(lum(&mean, n, black) > 0.25, "{}", lum(&mean, n, black));
+        let fly = 9 * w + 6;
+        let dark: Vec<f32> = (0..3 * n)
+            .map(|i| if i % n == fly { 700.0 } else { 0.01 })
+            .collect();
+        let near = 11 * w + 9; // in the coarse level's reach, outside the firefly's 5x5
+        let free = run(&params(levels, k), &dark, None, &f, h, w);
+        let out = run(&capped(2), &dark, None, &f, h, w);
+        assert!(lum(&free, n, near) > 1.0, "{}", lum(&free, n, near));
+        assert!(
+            lum(&out, n, near) <= 2.0 * 0.01 + 1e-4,
+            "{}",
+            lum(&out, n, near)
+        );
+    }
+
     /// The chroma composition's common cap (recon_vectors' chroma_cap case): dark warm
     /// pixels in a 2x2 block with an orange bright one, the fine chroma kernel one-hot, the
     /// coarse one a box, blends open. The coarse correction drives their red and green far
@@ -1759,6 +1843,8 @@ mod tests {
                         .unwrap_or_else(|| panic!("{name}: bad range_opening {o}"))
                 },
                 coarse_clamp: case["coarse_clamp"].as_bool().unwrap_or(false),
+                coarse_gain: case["coarse_gain"].as_f64().unwrap_or(1.0) as f32,
+                coarse_radius: case["coarse_radius"].as_u64().unwrap_or(0) as usize,
                 range_noise: case["range_noise"].as_f64().unwrap_or(0.0) as f32,
             };
             let rgb = json_vec(&case["rgb"]);

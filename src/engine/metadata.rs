@@ -66,6 +66,12 @@ pub struct ModelInfo {
     pub range_opening: RangeOpening,
     /// Whether the level composition caps each coarse correction (`temc.coarse_clamp`).
     pub coarse_clamp: bool,
+    /// The coarse clamp's gain (`temc.coarse_gain`; optional, absent means
+    /// [`crate::reconstruct::COARSE_GAIN`]).
+    pub coarse_gain: f32,
+    /// The coarse clamp's window radius (`temc.coarse_radius`; optional, absent means 0:
+    /// each pixel's own fine value).
+    pub coarse_radius: usize,
     /// The fixed range term's threshold from local noise, K (`temc.range_noise`; optional,
     /// absent or 0 means the fixed threshold everywhere).
     pub range_noise: f32,
@@ -151,6 +157,7 @@ impl ModelInfo {
         let fixed_range = flag("temc.fixed_range")?;
         let coarse_clamp = flag("temc.coarse_clamp")?;
         let range_noise = range_noise(&raw)?;
+        let (coarse_gain, coarse_radius) = coarse_cap(&raw)?;
         let upsample = named(
             &raw,
             "temc.upsample",
@@ -229,6 +236,8 @@ impl ModelInfo {
             upsample,
             range_opening,
             coarse_clamp,
+            coarse_gain,
+            coarse_radius,
             range_noise,
             passes,
             pq_nits_per_unit,
@@ -270,6 +279,36 @@ fn range_noise(raw: &BTreeMap<String, String>) -> Result<f32, Error> {
             "metadata `temc.range_noise` = {v:?} must be a finite number >= 0"
         ))),
     }
+}
+
+/// `temc.coarse_gain` (absent: [`crate::reconstruct::COARSE_GAIN`]; else finite, > 0) and
+/// `temc.coarse_radius` (absent: 0; else an integer up to
+/// [`crate::reconstruct::COARSE_RADIUS_MAX`]).
+fn coarse_cap(raw: &BTreeMap<String, String>) -> Result<(f32, usize), Error> {
+    let gain = match raw.get("temc.coarse_gain") {
+        None => crate::reconstruct::COARSE_GAIN,
+        Some(v) => match v.parse::<f32>() {
+            Ok(g) if g.is_finite() && g > 0.0 => g,
+            _ => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.coarse_gain` = {v:?} must be a finite number > 0"
+                )))
+            }
+        },
+    };
+    let max = crate::reconstruct::COARSE_RADIUS_MAX;
+    let radius = match raw.get("temc.coarse_radius") {
+        None => 0,
+        Some(v) => match v.parse::<usize>() {
+            Ok(r) if r <= max => r,
+            _ => {
+                return Err(Error::Model(format!(
+                    "metadata `temc.coarse_radius` = {v:?} must be an integer in 0..={max}"
+                )))
+            }
+        },
+    };
+    Ok((gain, radius))
 }
 
 /// An optional key naming one of `T`'s values (`from_name`, which knows `names`); absent:
@@ -345,6 +384,8 @@ mod tests {
             ("temc.range_opening", "aux"),
             ("temc.coarse_clamp", "1"),
             ("temc.range_noise", "6.0"),
+            ("temc.coarse_gain", "0.75"),
+            ("temc.coarse_radius", "2"),
             ("other.key", "ignored"),
         ]
     }
@@ -367,12 +408,18 @@ mod tests {
         assert_eq!(m.range_opening, RangeOpening::Aux);
         assert!(m.coarse_clamp);
         assert_eq!(m.range_noise, 6.0);
-        let without = card()
-            .into_iter()
-            .filter(|(k, _)| !["temc.range_opening", "temc.range_noise"].contains(k));
+        assert_eq!((m.coarse_gain, m.coarse_radius), (0.75, 2));
+        let optional = [
+            "temc.range_opening",
+            "temc.range_noise",
+            "temc.coarse_gain",
+            "temc.coarse_radius",
+        ];
+        let without = card().into_iter().filter(|(k, _)| !optional.contains(k));
         let m = ModelInfo::from_props(without).unwrap();
         assert_eq!(m.range_opening, RangeOpening::Plain);
         assert_eq!(m.range_noise, 0.0);
+        assert_eq!((m.coarse_gain, m.coarse_radius), (1.0, 0));
     }
 
     #[test]
@@ -410,6 +457,11 @@ mod tests {
             ("temc.range_noise", Some("-1")),
             ("temc.range_noise", Some("inf")),
             ("temc.range_noise", Some("six")),
+            ("temc.coarse_gain", Some("0")),
+            ("temc.coarse_gain", Some("nan")),
+            ("temc.coarse_radius", Some("9")),
+            ("temc.coarse_radius", Some("1.5")),
+            ("temc.coarse_radius", Some("-1")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

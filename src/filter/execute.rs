@@ -451,6 +451,8 @@ fn denoise_tile(
         upsample: info.upsample,
         range_opening: info.range_opening,
         coarse_clamp: info.coarse_clamp,
+        coarse_gain: info.coarse_gain,
+        coarse_radius: info.coarse_radius,
         range_noise: info.range_noise,
     };
     let refs = filters.levels()?;

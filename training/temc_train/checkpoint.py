@@ -130,6 +130,7 @@ class Checkpoint:
         model.range_opening = r["range_opening"]
         model.coarse_clamp = r["coarse_clamp"]
         model.range_noise = r["range_noise"]
+        model.coarse_gain, model.coarse_radius = r["coarse_gain"], r["coarse_radius"]
         return model, arch, float(width)
 
     def averaged(self, *others: "Checkpoint") -> "Checkpoint":

@@ -32,7 +32,8 @@ SPLITS = ("both", "one")
 # rows. train.py and export.py both fill the gaps from here, so a checkpoint loads alike.
 RECON_DEFAULTS = {"levels": LEVELS, "kernel": KERNEL, "split": "both", "demodulate": False,
                   "eps": 0.01, "guide": False, "fixed_range": False, "upsample": "nearest",
-                  "range_opening": "plain", "coarse_clamp": False, "range_noise": 0.0}
+                  "range_opening": "plain", "coarse_clamp": False, "range_noise": 0.0,
+                  "coarse_gain": 1.0, "coarse_radius": 0}
 # The architectures' names in the paper, the accuracy report and the model cards.
 ARCH_NAMES = {"ae": "AE", "demc": "DEMC", "temc1": "TEMC-1", "temc2": "TEMC-2"}
 

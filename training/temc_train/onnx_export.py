@@ -43,7 +43,9 @@ def recon_of(model) -> dict:
             "upsample": getattr(model, "upsample", d["upsample"]),
             "range_opening": getattr(model, "range_opening", d["range_opening"]),
             "coarse_clamp": bool(getattr(model, "coarse_clamp", d["coarse_clamp"])),
-            "range_noise": float(getattr(model, "range_noise", d["range_noise"]))}
+            "range_noise": float(getattr(model, "range_noise", d["range_noise"])),
+            "coarse_gain": float(getattr(model, "coarse_gain", d["coarse_gain"])),
+            "coarse_radius": int(getattr(model, "coarse_radius", d["coarse_radius"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -73,6 +75,8 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.range_opening": recon.get("range_opening", "plain"),
         "temc.coarse_clamp": "1" if recon.get("coarse_clamp") else "0",
         "temc.range_noise": repr(float(recon.get("range_noise", 0.0))),
+        "temc.coarse_gain": repr(float(recon.get("coarse_gain", 1.0))),
+        "temc.coarse_radius": str(int(recon.get("coarse_radius", 0))),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

@@ -6,6 +6,8 @@ module writes (temc_train.vectors.recon_vectors -> tests/data/recon_vectors.json
 within 1e-5. Non-finite logits: NaN -> 0, everything clamped to +-LOGIT_MAX, in both.
 """
 
+import math
+
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -38,8 +40,12 @@ EMITTER_ALBEDO = 0.95
 RANGE_OPENINGS = ("plain", "aux")
 # The coarse clamp (docs/reconstruction.md, step 4): a coarse level's correction adds at most
 # COARSE_GAIN times the finer level's own value, so a firefly a coarse level spreads cannot
-# raise its dark surroundings into a block (keep-mean returns what it holds back).
+# raise its dark surroundings into a block (keep-mean returns what it holds back). With
+# `temc.coarse_gain` and `temc.coarse_radius` a model names its own gain and caps against
+# the mean of the fine values over a (2 radius + 1)^2 window instead of the pixel's own
+# (docs/reconstruction.md, "The coarse cap against a local mean").
 COARSE_GAIN = 1.0
+COARSE_RADIUS_MAX = 8
 # The chroma composition's common cap (docs/reconstruction.md, step 4): a coarse correction
 # leaves every channel at least CHROMA_KEEP of its fine value; CHROMA_EPS keeps the cap's
 # ratio finite where a channel has neither value nor correction (the cap is then 1).
@@ -222,23 +228,36 @@ def _up(x, upsample="nearest"):
     return x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
 
 
-def _compose(fine, coarse, blend, upsample="nearest", clamp=False):
+def _compose(fine, coarse, blend, upsample="nearest", clamp=None):
     """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies.
     The correction, not each term, is upsampled: with `bilinear` the coarse level's blocks
-    no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4). `clamp`:
-    the correction is capped at COARSE_GAIN times the fine value."""
+    no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4). `clamp`
+    (gain, radius), or None: the correction is capped (_cap)."""
     return fine + _correction(fine, coarse, blend, upsample, clamp)
 
 
+def _cap(fine, gain, radius):
+    """What a coarse correction may add: `gain` times the fine value (clamped at 0), or
+    with `radius` > 0 times its (2 radius + 1)^2 mean, edges replicated. The mean lets a
+    coarse level fill a sparse 1-spp-like dark pixel beside lit ones, which its own value
+    would hold at black, while a firefly's dark surroundings stay capped."""
+    f = fine.clamp(min=0.0)
+    if not radius:
+        return gain * f
+    side = 2 * radius + 1
+    return gain * F.avg_pool2d(F.pad(f, (radius,) * 4, mode="replicate"), side, stride=1)
+
+
 def _correction(fine, coarse, blend, upsample, clamp):
-    """sigmoid(blend) * U(coarse - D(fine)), capped at COARSE_GAIN times fine with `clamp`."""
+    """sigmoid(blend) * U(coarse - D(fine)), capped by _cap(fine, *clamp) unless `clamp` is
+    None."""
     c = _up(coarse - F.avg_pool2d(fine, 2), upsample)
-    if clamp:
-        c = torch.minimum(c, COARSE_GAIN * fine.clamp(min=0.0))
+    if clamp is not None:
+        c = torch.minimum(c, _cap(fine, *clamp))
     return torch.sigmoid(blend) * c
 
 
-def _compose_chroma(fine, coarse, blend, upsample="nearest", clamp=False):
+def _compose_chroma(fine, coarse, blend, upsample="nearest", clamp=None):
     """_compose for the chroma filter's 3 channels, with the correction scaled down per pixel,
     all channels alike, until no channel falls below CHROMA_KEEP of its fine value. A
     correction that drove red and green negative but not blue was clamped channel by channel
@@ -265,7 +284,7 @@ def _recombine(cy, cc):
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
                 fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None,
-                coarse_clamp=False, range_noise=0.0):
+                coarse_clamp=False, range_noise=0.0, coarse_gain=COARSE_GAIN, coarse_radius=0):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
@@ -274,11 +293,18 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     level's correction to the finer one (UPSAMPLES; `temc.upsample`). `range_opening`
     (RANGE_OPENINGS; `temc.range_opening`): `aux` opens the fixed range term's luminance
     with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level.
-    `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction (_compose).
+    `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction at `coarse_gain`
+    (`temc.coarse_gain`) times the fine value, or with `coarse_radius` (`temc.coarse_radius`)
+    times its local mean (_cap).
     `range_noise` (`temc.range_noise`): the fixed range term's threshold from local noise
     (range_threshold; 0: RANGE_TAU everywhere)."""
     if range_opening not in RANGE_OPENINGS:
         raise ValueError(f"range_opening must be one of {RANGE_OPENINGS}, got {range_opening!r}")
+    if coarse_clamp and not (coarse_gain > 0 and math.isfinite(coarse_gain)
+                             and 0 <= coarse_radius <= COARSE_RADIUS_MAX
+                             and coarse_radius == int(coarse_radius)):
+        raise ValueError(f"coarse_gain must be finite and > 0 and coarse_radius an integer in "
+                         f"0..={COARSE_RADIUS_MAX}, got {coarse_gain!r}, {coarse_radius!r}")
     for level, f in enumerate(filters):
         want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
@@ -296,9 +322,10 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
         levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level],
                                     range_noise))
     cy, cc = levels[-1][:2]
+    clamp = (coarse_gain, int(coarse_radius)) if coarse_clamp else None
     for fy, fc, a, b in reversed(levels[:-1]):
-        cy = _compose(fy, cy, a, upsample, coarse_clamp)
-        cc = _compose_chroma(fc, cc, b, upsample, coarse_clamp)
+        cy = _compose(fy, cy, a, upsample, clamp)
+        cc = _compose_chroma(fc, cc, b, upsample, clamp)
     out = _recombine(cy, cc)
     if demodulate:
         out = out * d
@@ -314,7 +341,9 @@ def options(recon: dict) -> dict:
             "upsample": recon.get("upsample", "nearest"),
             "range_opening": recon.get("range_opening", "plain"),
             "coarse_clamp": recon.get("coarse_clamp", False),
-            "range_noise": recon.get("range_noise", 0.0)}
+            "range_noise": recon.get("range_noise", 0.0),
+            "coarse_gain": recon.get("coarse_gain", COARSE_GAIN),
+            "coarse_radius": recon.get("coarse_radius", 0)}
 
 
 @torch.no_grad()

@@ -69,3 +69,16 @@ def test_a_constants_variant_is_set_only_inside_its_block_and_unknown_names_are_
         except SystemExit:
             continue
         raise AssertionError(f"{bad} was accepted")
+
+
+def test_a_recon_setting_is_a_variant_too():
+    from temc_train.probes import constants
+
+    assert constants.parse_variant("recon.coarse_radius=4;recon.coarse_gain=0.5") == [
+        (None, "coarse_radius", 4), (None, "coarse_gain", 0.5)]
+    for bad in ("recon.guide=1", "recon.upsample=2", "recon.no_such=1"):
+        try:
+            constants.parse_variant(bad)
+        except SystemExit:
+            continue
+        raise AssertionError(f"{bad} was accepted")

@@ -129,7 +129,7 @@ def test_the_chroma_composition_scales_its_correction_and_keeps_every_channel():
     for up in ("nearest", "bilinear"):
         got = _compose_chroma(fine, coarse, blend, up)
         whole = _compose(fine, coarse, blend, up)
-        d = _correction(fine, coarse, blend, up, False)
+        d = _correction(fine, coarse, blend, up, None)
         assert (got >= CHROMA_KEEP * fine - 1e-12).all()
         free = (whole >= CHROMA_KEEP * fine).all(dim=1, keepdim=True).expand_as(got)
         assert free.any() and not free.all()
@@ -372,3 +372,39 @@ def test_the_coarse_clamp_caps_what_coarse_levels_add():
     free = lum(reconstruct(rgb, None, filters(3), 3))
     assert float((capped / fine).max()) <= 2.0 + 1e-4
     assert float((free / fine).max()) > 10.0
+
+
+def test_the_coarse_cap_against_a_local_mean_fills_sparse_pixels():
+    # The Rust test of the same name: one lit pixel in every other 2x2 block, identity
+    # kernels at the fine level, a box at level 1, blends open. Capped against its own value
+    # a black pixel stays black; against its 5x5 mean the coarse level fills it. Outside a
+    # firefly's own 5x5 its dark surroundings stay at most twice the dark level.
+    def filters():
+        fine = torch.zeros(1, channels(3), 16, 16)
+        fine[:, :18] = -LOGIT_MAX
+        fine[:, 4] = fine[:, 13] = LOGIT_MAX  # the centre taps
+        fine[:, 18:] = LOGIT_MAX
+        coarse = torch.zeros(1, channels(3), 8, 8)
+        return [fine, coarse]
+
+    yy, xx = torch.meshgrid(torch.arange(16), torch.arange(16), indexing="ij")
+    lit = (yy % 2 == 0) & (xx % 2 == 0) & ((yy // 2 + xx // 2) % 2 == 0)
+    sparse = (4.0 * lit).expand(1, 3, 16, 16).float()
+    own = lum(reconstruct(sparse, None, filters(), 3, coarse_clamp=True))
+    mean = lum(reconstruct(sparse, None, filters(), 3, coarse_clamp=True, coarse_radius=2))
+    assert float(own[0, 1, 2]) < 1e-6
+    assert float(mean[0, 1, 2]) > 0.25
+    dark = torch.full((1, 3, 16, 16), 0.01)
+    dark[:, :, 9, 6] = 700.0
+    free = lum(reconstruct(dark, None, filters(), 3))
+    capped = lum(reconstruct(dark, None, filters(), 3, coarse_clamp=True, coarse_radius=2))
+    assert float(free[0, 11, 9]) > 1.0
+    assert float(capped[0, 11, 9]) <= 0.02 + 1e-4
+
+
+def test_the_coarse_cap_refuses_a_bad_gain_or_radius():
+    rgb = torch.ones(1, 3, 8, 8)
+    f = [torch.zeros(1, channels(3), 8, 8), torch.zeros(1, channels(3), 4, 4)]
+    for gain, radius in ((0.0, 0), (math.inf, 0), (1.0, 9), (1.0, 1.5), (1.0, -1)):
+        with pytest.raises(ValueError):
+            reconstruct(rgb, None, f, 3, coarse_clamp=True, coarse_gain=gain, coarse_radius=radius)

@@ -77,6 +77,12 @@ def main() -> None:
     ap.add_argument("--range-noise", type=float,
                     help="temc.range_noise: the fixed range term's threshold from local noise "
                     "(default: what the model trained with); to measure others without retraining")
+    ap.add_argument("--coarse-gain", type=float,
+                    help="temc.coarse_gain: the coarse clamp's gain (default: what the model "
+                    "trained with); to measure others without retraining")
+    ap.add_argument("--coarse-radius", type=int,
+                    help="temc.coarse_radius: the coarse clamp's window radius (default: what the "
+                    "model trained with); to measure others without retraining")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
@@ -97,7 +103,8 @@ def main() -> None:
     info.update({k: v for k, v in overrides.items() if v is not None})
     chosen = {"upsample": a.upsample, "range_opening": a.range_opening,
               "coarse_clamp": None if a.coarse_clamp is None else bool(a.coarse_clamp),
-              "range_noise": a.range_noise}
+              "range_noise": a.range_noise, "coarse_gain": a.coarse_gain,
+              "coarse_radius": a.coarse_radius}
     recon = dict(recon_of(model), **{k: v for k, v in chosen.items() if v is not None})
     # Trained weights carry their measured reach; random ones the theoretical bound.
     overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None

@@ -54,7 +54,11 @@ SHIP_RECON = {"fixed_range": True, "range_opening": "aux", "range_noise": 6.0}
 # And per model: balanced's and high's coarse levels capped (a firefly they spread no longer raises a block)
 # and composed bilinearly (no 2x2 grid on flat walls), both fixed functions, added at shipping
 # and trained with since 2026-12-05 (docs/reconstruction.md, "High: three levels, fenced").
-FILE_RECON = {file: {"coarse_clamp": True, "upsample": "bilinear"}
+# The cap is half the mean of the finer values over 9x9 (gain 0.5, radius 4), not the
+# pixel's own value: chosen without retraining on 24 of our validation scenes, RelMSE
+# 0.97-0.998x at 1-64 spp (docs/reconstruction.md, "The coarse cap against a local mean").
+FILE_RECON = {file: {"coarse_clamp": True, "upsample": "bilinear", "coarse_gain": 0.5,
+                     "coarse_radius": 4}
               for file in ("temc2-balanced", "temc2-high")}
 # Flip passes a filter runs by default (`temc.passes`; 1 when absent): high averages the
 # tile and its half turn, 2-5 % lower RelMSE than one pass on the Cycles family at twice
@@ -220,6 +224,19 @@ def shipped_with(file, key) -> str:
     return " (added at shipping), " if key in FILE_RECON.get(file, {}) else ", "
 
 
+def coarse_clamp_text(file, ck, recon: dict) -> str:
+    """The card's words for the coarse clamp at the model's gain and radius, and when each
+    joined training."""
+    gain, radius = recon.get("coarse_gain", 1.0), recon.get("coarse_radius", 0)
+    side = 2 * radius + 1
+    against = f"the {side}x{side} mean of the finer values" if radius else "a finer value"
+    text = (f"the coarse clamp (a coarse level's correction adds at most {gain:g} times "
+            f"{against})" + since(ck, "coarse_clamp", shipped_with(file, "coarse_clamp")))
+    if gain != 1.0 or radius:
+        text += "its gain and window" + since(ck, "coarse_radius", shipped_with(file, "coarse_radius"))
+    return text
+
+
 def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, overlap, passes):
     """The model card. `data`: {"text": the data set's settings, "train": its training
     scenes or None}."""
@@ -297,9 +314,7 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
         + ("bilinear composition of the levels"
            + since(ck, "upsample", shipped_with(file, "upsample"))
            if recon.get("upsample") == "bilinear" else "")
-        + ("the coarse clamp (a coarse level's correction at most doubles a finer value)"
-           + since(ck, "coarse_clamp", shipped_with(file, "coarse_clamp"))
-           if recon.get("coarse_clamp") else "")
+        + (coarse_clamp_text(file, ck, recon) if recon.get("coarse_clamp") else "")
         + "applied by the core to the noisy linear radiance "
         "(docs/reconstruction.md; models.py says why not the paper's sigmoid), then the core's "
         "keep-mean stage (docs/keep-mean.md; not seen in training) |",

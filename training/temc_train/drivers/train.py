@@ -60,9 +60,10 @@ from .distributed import Group
 
 
 # The reconstruction settings a resumed run may change (recon_settings' keys): the fixed
-# range term, the composition's upsampling, the range term's opening, the coarse clamp, the
-# range term's threshold from local noise.
-SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp", "range_noise")
+# range term, the composition's upsampling, the range term's opening, the coarse clamp and
+# its gain and radius, the range term's threshold from local noise.
+SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp", "range_noise",
+              "coarse_gain", "coarse_radius")
 
 
 def recon_settings(a) -> dict:
@@ -71,7 +72,8 @@ def recon_settings(a) -> dict:
             "demodulate": bool(a.demodulate), "eps": a.eps, "guide": bool(a.guide),
             "fixed_range": bool(a.fixed_range), "upsample": a.upsample,
             "range_opening": a.range_opening, "coarse_clamp": bool(a.coarse_clamp),
-            "range_noise": float(a.range_noise)}
+            "range_noise": float(a.range_noise), "coarse_gain": float(a.coarse_gain),
+            "coarse_radius": int(a.coarse_radius)}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -641,8 +643,14 @@ def arg_parser() -> argparse.ArgumentParser:
                          "surface (aux; docs/reconstruction.md, \"Aux-guided opening\"); a run "
                          "may switch it at any step")
     ap.add_argument("--coarse-clamp", type=int, choices=(0, 1), default=0,
-                    help="cap each coarse level's correction at COARSE_GAIN times the finer "
+                    help="cap each coarse level's correction at --coarse-gain times the finer "
                          "value (docs/reconstruction.md, step 4); a run may switch it at any step")
+    ap.add_argument("--coarse-gain", type=float, default=1.0,
+                    help="temc.coarse_gain: the coarse clamp's gain; a run may switch it")
+    ap.add_argument("--coarse-radius", type=int, default=0,
+                    help="temc.coarse_radius: cap against the fine values' (2r+1)^2 mean, not "
+                         "the pixel's own (docs/reconstruction.md, \"The coarse cap against a "
+                         "local mean\"); a run may switch it")
     ap.add_argument("--range-noise", type=float, default=0.0,
                     help="the fixed range term's threshold from local noise, K of "
                          "temc.range_noise (0: RANGE_TAU everywhere; docs/reconstruction.md, "

@@ -1,23 +1,26 @@
-"""What changing one fixed constant of the reconstruction or of keep-mean would do to
-accuracy, without retraining: each image of a data split through a checkpoint's network
-and the reconstruction it ships with (ship.SHIP_RECON over the checkpoint's own), once with
-the constants as they are and once per variant, keep-mean included. Prints, per spp, the
-geometric mean over the images of RelMSE with the variant / RelMSE as shipped, and the
-worst image's ratio.
+"""What changing one fixed constant of the reconstruction or of keep-mean, or one of a
+model's reconstruction settings, would do to accuracy, without retraining: each image of a
+data split through a checkpoint's network and its reconstruction under ship.SHIP_RECON
+(with --file, that file's FILE_RECON too: the baseline), once as the baseline and once per
+variant, keep-mean included. Prints, per spp, the geometric mean over the images of RelMSE
+with the variant / RelMSE of the baseline, and the worst image's ratio.
 
     python -m temc_train.probes.constants --data ../data/cycles-family \\
         --checkpoint runs/temc2-w0.125-l3/checkpoint.pt \\
         --set reconstruct.COARSE_GAIN=0.5 --set reconstruct.COARSE_GAIN=2
     python -m temc_train.probes.constants --data ../data/spectral-v2 --prefix holdout \\
         --spp 4,16,64 --checkpoint runs/temc2-w0.125-l3/checkpoint.pt \\
-        --set reconstruct.COARSE_GAIN=0.5
+        --set "recon.coarse_radius=4;recon.coarse_gain=0.5"
 
 A variant is `MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]`, MODULE one of `reconstruct` and
-`keep_mean`, NAME an existing numeric constant there. The Rust core has its own copies:
-a variant worth shipping is a contract change (docs/contracts.md), not a file edit here. A
-variant that leaves every image unchanged ends the probe with an error after the table (the
-constant never binds on these images, or is not read where the probe looks, e.g. a default
-argument bound at import), so a ratio of exactly 1 is never a silent no-op.
+`keep_mean`, NAME an existing numeric constant there, or MODULE `recon` and NAME a numeric
+reconstruction setting (models.RECON_DEFAULTS; the metadata's `temc.NAME`, e.g.
+`recon.coarse_radius=4;recon.coarse_gain=0.5`). The Rust core has its own copies of the
+constants: a constant worth shipping is a contract change (docs/contracts.md), not a file
+edit here; a setting ships through ship.SHIP_RECON or FILE_RECON. A variant that leaves
+every image unchanged ends the probe with an error after the table (the constant never
+binds on these images, or is not read where the probe looks, e.g. a default argument bound
+at import), so a ratio of exactly 1 is never a silent no-op.
 """
 
 import argparse
@@ -29,18 +32,24 @@ import numpy as np
 from .. import color, evaluate as ev, keep_mean, reconstruct
 from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
-from ..drivers.ship import SHIP_RECON
+from ..drivers.ship import FILE_RECON, SHIP_RECON
+from ..models import RECON_DEFAULTS
 from .range_noise import scenes
 
 MODULES = {"reconstruct": reconstruct, "keep_mean": keep_mean}
 
 
 def parse_variant(text: str) -> list:
-    """`MODULE.NAME=VALUE;...` as [(module, name, value)]; refuses unknown names."""
+    """`MODULE.NAME=VALUE;...` as [(module, name, value)], module None for a `recon.NAME`
+    setting; refuses unknown names."""
     out = []
     for item in text.split(";"):
         key, _, value = item.partition("=")
         mod_name, _, name = key.strip().partition(".")
+        default = RECON_DEFAULTS.get(name)
+        if mod_name == "recon" and isinstance(default, (int, float)) and not isinstance(default, bool):
+            out.append((None, name, type(default)(float(value))))
+            continue
         mod = MODULES.get(mod_name)
         if mod is None or not isinstance(getattr(mod, name, None), (int, float)):
             raise SystemExit(f"--set {item!r}: not a numeric constant of "
@@ -52,7 +61,9 @@ def parse_variant(text: str) -> list:
 
 @contextlib.contextmanager
 def patched(assignments: list):
-    """The constants set for the duration of the block, restored after it."""
+    """The constants set for the duration of the block, restored after it (`recon`
+    settings are not constants: image_errors applies them)."""
+    assignments = [a for a in assignments if a[0] is not None]
     old = [(mod, name, getattr(mod, name)) for mod, name, _ in assignments]
     try:
         for mod, name, value in assignments:
@@ -64,13 +75,14 @@ def patched(assignments: list):
 
 
 def image_errors(model, recon, layers, ref, variants):
-    """RelMSE of one noisy render as shipped, then under each variant; and the images."""
+    """RelMSE of one noisy render under the baseline, then each variant; and the images."""
     aux = np.moveaxis(color.aux_channels(layers["albedo"], layers["normal"], layers["depth"]), 0, -1)
     scale = auto_input_scale(layers["color"])
     images = []
     for assignments in [[]] + variants:
+        settings = dict(recon, **{name: v for mod, name, v in assignments if mod is None})
         with patched(assignments):
-            images += reconstruct.denoise_variants(model, [recon], layers["color"], aux, scale)
+            images += reconstruct.denoise_variants(model, [settings], layers["color"], aux, scale)
     return [ev.relmse(img, ref) for img in images], images
 
 
@@ -80,6 +92,8 @@ def main(argv=None):
     ap.add_argument("--checkpoint", required=True)
     ap.add_argument("--set", action="append", required=True, dest="variants",
                     help="a variant: MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]; repeat for more")
+    ap.add_argument("--file", choices=sorted(FILE_RECON),
+                    help="a shipped file whose FILE_RECON joins the baseline")
     ap.add_argument("--spp", default="1,4,16,64")
     ap.add_argument("--split", default="test")
     ap.add_argument("--prefix", default="", help="only scenes whose names start with this")
@@ -88,7 +102,8 @@ def main(argv=None):
     variants = [parse_variant(v) for v in a.variants]
     spps = [int(s) for s in a.spp.split(",")]
     ck = Checkpoint.read(a.checkpoint)
-    model, recon = ck.build()[0].eval(), {**ck.recon, **SHIP_RECON}
+    model = ck.build()[0].eval()
+    recon = {**ck.recon, **SHIP_RECON, **FILE_RECON.get(a.file, {})}
     ratios = {(s, i): [] for s in spps for i in range(len(variants))}
     moved = [False] * len(variants)
     recs = scenes(a.data, a.split, a.prefix, a.limit)
@@ -104,7 +119,7 @@ def main(argv=None):
                 ratios[(spp, i)].append(e / base)
                 moved[i] |= not np.array_equal(img, img0)
     print(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
-          f"RelMSE with the variant / as shipped: geometric mean (worst image)")
+          f"RelMSE with the variant / the baseline: geometric mean (worst image)")
     print("| spp | " + " | ".join(a.variants) + " |")
     print("|---:|" + "---:|" * len(variants))
     for s in (s for s in spps if ratios[(s, 0)]):

@@ -22,7 +22,8 @@ SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 
 def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
-          fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False, range_noise=0.0):
+          fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False, range_noise=0.0,
+          coarse_gain=1.0, coarse_radius=0):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -33,7 +34,8 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
     return dict(name=name, h=h, w=w, levels=levels, kernel=kernel, demodulate=demodulate,
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
                 upsample=upsample, range_opening="plain", coarse_clamp=coarse_clamp,
-                range_noise=range_noise, rgb=rgb,
+                range_noise=range_noise, coarse_gain=coarse_gain, coarse_radius=coarse_radius,
+                rgb=rgb,
                 albedo=albedo if demodulate else None, aux=None, filters=filters)
 
 
@@ -104,7 +106,7 @@ def cases():
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
     return (out + aux_opening_cases(rng) + coarse_clamp_cases(rng) + chroma_cap_cases(rng)
-            + range_noise_cases(rng))
+            + range_noise_cases(rng) + coarse_mean_cases(rng))
 
 
 def coarse_clamp_cases(rng):
@@ -172,7 +174,8 @@ def run(case, dtype):
     out = reconstruct(t(case["rgb"]), albedo, [t(f) for f in case["filters"]], case["kernel"],
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
                       case["fixed_range"], case["exposure"], case["upsample"],
-                      case["range_opening"], aux, case["coarse_clamp"], case["range_noise"])
+                      case["range_opening"], aux, case["coarse_clamp"], case["range_noise"],
+                      case.get("coarse_gain", 1.0), case.get("coarse_radius", 0))
     return out[0].double().numpy()
 
 
@@ -218,6 +221,29 @@ def range_noise_cases(rng):
               range_noise=4.0)
     c.update(range_opening="aux", aux=_aux(rng, 16, 16))
     c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.1, 30.0, 1.0)
+    out.append(c)
+    return out
+
+
+def coarse_mean_cases(rng):
+    """The coarse clamp against a local mean (`temc.coarse_gain`, `temc.coarse_radius`): sparse
+    1-spp-like radiance (most pixels black, some 30x brighter) under nearest and bilinear
+    composition, and the shipped recipe with it (radius 2 reaches past a 16x8 level-1 edge,
+    so the replicated edges count)."""
+    out = []
+    for name, up, levels, k, gain, radius in (("coarse_mean_16x16_L2_k3", "nearest", 2, 3, 0.5, 1),
+                                               ("coarse_mean_16x8_L3_k5", "bilinear", 3, 5, 0.75, 2)):
+        h, w = 16, 16 if levels == 2 else 8
+        c = _case(name, rng, h, w, levels, k, sd=1.0, upsample=up, coarse_clamp=True,
+                  coarse_gain=gain, coarse_radius=radius)
+        c["rgb"] *= np.where(rng.random((1, h, w)) < 0.6, 0.0, 1.0)
+        c["rgb"] *= np.where(rng.random((1, h, w)) < 0.1, 30.0, 1.0)
+        out.append(c)
+    c = _case("coarse_mean_full_16x16_L3_k5", rng, 16, 16, 3, 5, sd=1.0, guide=True,
+              fixed_range=True, exposure=0.7, upsample="bilinear", coarse_clamp=True,
+              range_noise=6.0, coarse_gain=0.75, coarse_radius=2)
+    c.update(range_opening="aux", aux=_aux(rng, 16, 16))
+    c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.5, 0.0, 1.0)
     out.append(c)
     return out
 
