@@ -37,8 +37,9 @@ const GREY_PULL: f32 = 1.0e-6;
 /// plane is freed; the per-row weights are k^2 x 128 floats. While composing level 0
 /// (multi-level models): fy and fc 4, the composed level 1 one, the three chroma
 /// corrections 3, the sigmoid of a blend 1, the correction being made 1 and its coarse
-/// detail a quarter: 10.25.
-pub const SCRATCH_PLANES: f64 = 11.0;
+/// detail a quarter, and with `temc.coarse_radius` the local mean it is capped against 1
+/// (while that mean is made, it and two planes stand in for the last three): 11.25.
+pub const SCRATCH_PLANES: f64 = 11.25;
 
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
