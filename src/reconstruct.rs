@@ -599,21 +599,26 @@ fn median9(mut v: [f32; 9]) -> f32 {
 
 /// The mean over each pixel's `side` x `side` window, coordinates clamped to the image
 /// (edges replicated, as PyTorch's replicate padding): along rows, then along columns.
+/// Whole shifted rows are added tap by tap (a row padded by its edge values first), so the
+/// loops vectorise; each sum still runs over its taps in order.
 fn box_mean(x: &[f32], h: usize, w: usize, side: usize) -> Vec<f32> {
     let r = side / 2;
-    let at = |i: usize, d: usize, n: usize| (i + d).saturating_sub(r).min(n - 1);
+    let add = |acc: &mut [f32], src: &[f32]| acc.iter_mut().zip(src).for_each(|(a, v)| *a += v);
     let mut rows = vec![0.0; h * w];
+    let mut padded = vec![0.0; w + 2 * r];
     for (src, dst) in x.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
-        for (i, o) in dst.iter_mut().enumerate() {
-            *o = (0..side).map(|d| src[at(i, d, w)]).sum();
+        for (j, p) in padded.iter_mut().enumerate() {
+            *p = src[j.saturating_sub(r).min(w - 1)];
         }
+        (0..side).for_each(|d| add(dst, &padded[d..d + w]));
     }
     let mut out = vec![0.0; h * w];
     let scale = 1.0 / (side * side) as f32;
     for (y, dst) in out.chunks_exact_mut(w).enumerate() {
-        for (x, o) in dst.iter_mut().enumerate() {
-            *o = (0..side).map(|d| rows[at(y, d, h) * w + x]).sum::<f32>() * scale;
+        for d in 0..side {
+            add(dst, &rows[(y + d).saturating_sub(r).min(h - 1) * w..][..w]);
         }
+        dst.iter_mut().for_each(|o| *o *= scale);
     }
     out
 }
