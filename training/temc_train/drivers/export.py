@@ -27,6 +27,20 @@ from ..onnx_export import (CHANNELS, GOLDEN_SIZE, GOLDEN_WIDTH, INPUTS, OPSET, P
                            example_inputs, export, max_diff, metadata, ort_session, output_names,
                            randomize_untrained, recon_of, run_ort)
 
+# The reconstruction settings an export may set instead of the model's own: (flag, its
+# argparse type, what it sets).
+RECON_FLAGS = (
+    ("--upsample", {"choices": UPSAMPLES}, "temc.upsample: the level composition the core runs"),
+    ("--range-opening", {"choices": RANGE_OPENINGS},
+     "temc.range_opening: what the fixed range term opens"),
+    ("--coarse-clamp", {"type": int, "choices": (0, 1)},
+     "temc.coarse_clamp: cap each coarse correction"),
+    ("--range-noise", {"type": float},
+     "temc.range_noise: the fixed range term's threshold from local noise"),
+    ("--coarse-gain", {"type": float}, "temc.coarse_gain: the coarse clamp's gain"),
+    ("--coarse-radius", {"type": int}, "temc.coarse_radius: the coarse clamp's window radius"),
+)
+
 
 def write_golden(root: str, seed: int = 7) -> None:
     """Writes tests/data/models/<arch>_w0.0625.onnx and tests/data/golden/<arch>_w0.0625/."""
@@ -65,24 +79,9 @@ def main() -> None:
     ap.add_argument("--test-relmse", type=float, help="temc.test_relmse")
     ap.add_argument("--description", help="temc.description")
     ap.add_argument("--golden", metavar="DIR", help="write test models and goldens under DIR")
-    ap.add_argument("--upsample", choices=UPSAMPLES,
-                    help="temc.upsample: the level composition the core runs (default: the one "
-                    "the model trained with); to measure the other without retraining")
-    ap.add_argument("--range-opening", choices=RANGE_OPENINGS,
-                    help="temc.range_opening: what the fixed range term opens (default: what "
-                    "the model trained with); to measure the other without retraining")
-    ap.add_argument("--coarse-clamp", type=int, choices=(0, 1),
-                    help="temc.coarse_clamp: cap each coarse correction (default: what the model "
-                    "trained with); to measure the other without retraining")
-    ap.add_argument("--range-noise", type=float,
-                    help="temc.range_noise: the fixed range term's threshold from local noise "
-                    "(default: what the model trained with); to measure others without retraining")
-    ap.add_argument("--coarse-gain", type=float,
-                    help="temc.coarse_gain: the coarse clamp's gain (default: what the model "
-                    "trained with); to measure others without retraining")
-    ap.add_argument("--coarse-radius", type=int,
-                    help="temc.coarse_radius: the coarse clamp's window radius (default: what the "
-                    "model trained with); to measure others without retraining")
+    for flag, kind, what in RECON_FLAGS:
+        ap.add_argument(flag, **kind, help=f"{what} (default: what the model trained with); "
+                        "to measure others without retraining")
     a = ap.parse_args()
     torch.set_num_threads(2)
     if a.golden:
@@ -101,10 +100,10 @@ def main() -> None:
         what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
-    chosen = {"upsample": a.upsample, "range_opening": a.range_opening,
-              "coarse_clamp": None if a.coarse_clamp is None else bool(a.coarse_clamp),
-              "range_noise": a.range_noise, "coarse_gain": a.coarse_gain,
-              "coarse_radius": a.coarse_radius}
+    chosen = {flag[2:].replace("-", "_"): getattr(a, flag[2:].replace("-", "_"))
+              for flag, _, _ in RECON_FLAGS}
+    if chosen["coarse_clamp"] is not None:
+        chosen["coarse_clamp"] = bool(chosen["coarse_clamp"])
     recon = dict(recon_of(model), **{k: v for k, v in chosen.items() if v is not None})
     # Trained weights carry their measured reach; random ones the theoretical bound.
     overlap = receptive.effective_overlap(model, recon) if a.checkpoint else None
