@@ -1687,7 +1687,6 @@ mod tests {
         let free = run(&params(levels, k), &rgb, None, &f, h, w);
         let capped = Params {
             coarse_clamp: true,
-            range_noise: 0.0,
             ..params(levels, k)
         };
         let out = run(&capped, &rgb, None, &f, h, w);

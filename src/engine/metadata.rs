@@ -270,45 +270,44 @@ impl ModelInfo {
 
 /// `temc.range_noise`: absent means 0 (the fixed threshold); else a finite number >= 0.
 fn range_noise(raw: &BTreeMap<String, String>) -> Result<f32, Error> {
-    let Some(v) = raw.get("temc.range_noise") else {
-        return Ok(0.0);
-    };
-    match v.parse::<f32>() {
-        Ok(k) if k.is_finite() && k >= 0.0 => Ok(k),
-        _ => Err(Error::Model(format!(
-            "metadata `temc.range_noise` = {v:?} must be a finite number >= 0"
-        ))),
-    }
+    let ok = |k: &f32| k.is_finite() && *k >= 0.0;
+    optional(raw, "temc.range_noise", 0.0, ok, "a finite number >= 0")
 }
 
 /// `temc.coarse_gain` (absent: [`crate::reconstruct::COARSE_GAIN`]; else finite, > 0) and
 /// `temc.coarse_radius` (absent: 0; else an integer up to
 /// [`crate::reconstruct::COARSE_RADIUS_MAX`]).
 fn coarse_cap(raw: &BTreeMap<String, String>) -> Result<(f32, usize), Error> {
-    let gain = match raw.get("temc.coarse_gain") {
-        None => crate::reconstruct::COARSE_GAIN,
-        Some(v) => match v.parse::<f32>() {
-            Ok(g) if g.is_finite() && g > 0.0 => g,
-            _ => {
-                return Err(Error::Model(format!(
-                    "metadata `temc.coarse_gain` = {v:?} must be a finite number > 0"
-                )))
-            }
-        },
-    };
-    let max = crate::reconstruct::COARSE_RADIUS_MAX;
-    let radius = match raw.get("temc.coarse_radius") {
-        None => 0,
-        Some(v) => match v.parse::<usize>() {
-            Ok(r) if r <= max => r,
-            _ => {
-                return Err(Error::Model(format!(
-                    "metadata `temc.coarse_radius` = {v:?} must be an integer in 0..={max}"
-                )))
-            }
-        },
-    };
+    use crate::reconstruct::{COARSE_GAIN, COARSE_RADIUS_MAX as MAX};
+    let gain_ok = |g: &f32| g.is_finite() && *g > 0.0;
+    let gain = optional(
+        raw,
+        "temc.coarse_gain",
+        COARSE_GAIN,
+        gain_ok,
+        "a finite number > 0",
+    )?;
+    let within = format!("an integer in 0..={MAX}");
+    let radius = optional(raw, "temc.coarse_radius", 0, |r| *r <= MAX, &within)?;
     Ok((gain, radius))
+}
+
+/// An optional numeric key: absent, `default`; else its value if it parses as `T` and is
+/// `ok`, or an error saying it must be `what`.
+fn optional<T: std::str::FromStr>(
+    raw: &BTreeMap<String, String>,
+    key: &str,
+    default: T,
+    ok: impl Fn(&T) -> bool,
+    what: &str,
+) -> Result<T, Error> {
+    let Some(v) = raw.get(key) else {
+        return Ok(default);
+    };
+    v.parse::<T>()
+        .ok()
+        .filter(ok)
+        .ok_or_else(|| Error::Model(format!("metadata `{key}` = {v:?} must be {what}")))
 }
 
 /// An optional key naming one of `T`'s values (`from_name`, which knows `names`); absent:

@@ -100,8 +100,8 @@ def main() -> None:
         what = f"untrained {arch} at width {width} (seed {a.seed}); for benchmarks only"
     overrides = {"dataset": a.dataset, "train_steps": a.train_steps, "test_relmse": a.test_relmse}
     info.update({k: v for k, v in overrides.items() if v is not None})
-    chosen = {flag[2:].replace("-", "_"): getattr(a, flag[2:].replace("-", "_"))
-              for flag, _, _ in RECON_FLAGS}
+    dests = (flag[2:].replace("-", "_") for flag, _, _ in RECON_FLAGS)
+    chosen = {dest: getattr(a, dest) for dest in dests}
     if chosen["coarse_clamp"] is not None:
         chosen["coarse_clamp"] = bool(chosen["coarse_clamp"])
     recon = dict(recon_of(model), **{k: v for k, v in chosen.items() if v is not None})

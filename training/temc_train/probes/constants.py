@@ -25,6 +25,7 @@ at import), so a ratio of exactly 1 is never a silent no-op.
 
 import argparse
 import contextlib
+import json
 import os
 
 import numpy as np
@@ -34,9 +35,45 @@ from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
 from ..drivers.ship import FILE_RECON, SHIP_RECON
 from ..models import RECON_DEFAULTS
-from .range_noise import scenes
 
 MODULES = {"reconstruct": reconstruct, "keep_mean": keep_mean}
+
+
+def scenes(root, split, prefix, limit):
+    """The finished scenes of `split` whose names start with `prefix`, the first `limit`."""
+    with open(os.path.join(root, "manifest.json")) as f:
+        recs = json.load(f)["scenes"]
+    done = [r for r in recs if r["split"] == split and r["name"].startswith(prefix)
+            and os.path.exists(os.path.join(root, r["dir"], "done.json"))]
+    return done[:limit]
+
+
+def ratios_over(root, recs, spps, count, errors) -> dict:
+    """{(spp, i): [RelMSE of variant i / the baseline's, one per image]} over every noisy
+    render at `spps` of the scenes `recs` of data set `root`; `errors(layers, ref)` gives
+    the baseline's RelMSE, then the `count` variants'. (The probes' one loop.)"""
+    ratios = {(s, i): [] for s in spps for i in range(count)}
+    for rec in recs:
+        d = os.path.join(root, rec["dir"])
+        ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
+        for spp, name in rec["noisy"]:
+            if spp in spps:
+                base, *rest = errors(ev.read_exr(os.path.join(d, name)), ref)
+                for i, e in enumerate(rest):
+                    ratios[(spp, i)].append(e / base)
+    return ratios
+
+
+def print_ratios(head: str, labels: list, ratios: dict, spps) -> None:
+    """`head`, then a table per spp (those with images) of each variant's geometric-mean
+    ratio and its worst image's."""
+    print(head)
+    print("| spp | " + " | ".join(labels) + " |")
+    print("|---:|" + "---:|" * len(labels))
+    for s in (s for s in spps if ratios[(s, 0)]):
+        cells = [f"{np.exp(np.mean(np.log(ratios[(s, i)]))):.4f} ({max(ratios[(s, i)]):.3f})"
+                 for i in range(len(labels))]
+        print(f"| {s} | " + " | ".join(cells) + " |")
 
 
 def parse_variant(text: str) -> list:
@@ -104,28 +141,19 @@ def main(argv=None):
     ck = Checkpoint.read(a.checkpoint)
     model = ck.build()[0].eval()
     recon = {**ck.recon, **SHIP_RECON, **FILE_RECON.get(a.file, {})}
-    ratios = {(s, i): [] for s in spps for i in range(len(variants))}
     moved = [False] * len(variants)
+
+    def errors(layers, ref):
+        errs, (img0, *imgs) = image_errors(model, recon, layers, ref, variants)
+        for i, img in enumerate(imgs):
+            moved[i] |= not np.array_equal(img, img0)
+        return errs
+
     recs = scenes(a.data, a.split, a.prefix, a.limit)
-    for rec in recs:
-        d = os.path.join(a.data, rec["dir"])
-        ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
-        for spp, name in rec["noisy"]:
-            if spp not in spps:
-                continue
-            (base, *rest), (img0, *imgs) = image_errors(
-                model, recon, ev.read_exr(os.path.join(d, name)), ref, variants)
-            for i, (e, img) in enumerate(zip(rest, imgs)):
-                ratios[(spp, i)].append(e / base)
-                moved[i] |= not np.array_equal(img, img0)
-    print(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
-          f"RelMSE with the variant / the baseline: geometric mean (worst image)")
-    print("| spp | " + " | ".join(a.variants) + " |")
-    print("|---:|" + "---:|" * len(variants))
-    for s in (s for s in spps if ratios[(s, 0)]):
-        cells = [f"{np.exp(np.mean(np.log(ratios[(s, i)]))):.4f} ({max(ratios[(s, i)]):.3f})"
-                 for i in range(len(variants))]
-        print(f"| {s} | " + " | ".join(cells) + " |")
+    ratios = ratios_over(a.data, recs, spps, len(variants), errors)
+    print_ratios(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
+                 "RelMSE with the variant / the baseline: geometric mean (worst image)",
+                 a.variants, ratios, spps)
     still = [v for v, m in zip(a.variants, moved) if not m]
     if still:
         raise SystemExit(f"--set {', '.join(still)}: changed no image (it never binds on "

@@ -11,8 +11,6 @@ RelMSE at K / RelMSE at 0, and the worst image's ratio.
 """
 
 import argparse
-import json
-import os
 
 import numpy as np
 
@@ -20,15 +18,7 @@ from .. import color, evaluate as ev
 from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
 from ..reconstruct import denoise_variants
-
-
-def scenes(root, split, prefix, limit):
-    """The finished scenes of `split` whose names start with `prefix`, the first `limit`."""
-    with open(os.path.join(root, "manifest.json")) as f:
-        recs = json.load(f)["scenes"]
-    done = [r for r in recs if r["split"] == split and r["name"].startswith(prefix)
-            and os.path.exists(os.path.join(root, r["dir"], "done.json"))]
-    return done[:limit]
+from .constants import print_ratios, ratios_over, scenes
 
 
 def image_errors(model, recon, layers, ref, ks):
@@ -54,26 +44,12 @@ def main(argv=None):
     spps = [int(s) for s in a.spp.split(",")]
     ck = Checkpoint.read(a.checkpoint)
     model, recon = ck.build()[0].eval(), ck.recon
-    ratios = {(s, k): [] for s in spps for k in ks}
     recs = scenes(a.data, a.split, a.prefix, a.limit)
-    for rec in recs:
-        d = os.path.join(a.data, rec["dir"])
-        ref = ev.read_exr(os.path.join(d, rec["reference"]))["color"]
-        for spp, name in rec["noisy"]:
-            if spp in spps:
-                base, *rest = image_errors(model, recon, ev.read_exr(os.path.join(d, name)), ref,
-                                           [0.0] + ks)
-                for k, e in zip(ks, rest):
-                    ratios[(spp, k)].append(e / base)
-    print(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
-          f"RelMSE with K / with 0: geometric mean (worst image)")
-    print("| spp | " + " | ".join(f"K = {k:g}" for k in ks) + " |")
-    print("|---:|" + "---:|" * len(ks))
-    for s in spps:
-        cells = [f"{np.exp(np.mean(np.log(ratios[(s, k)]))):.4f} ({max(ratios[(s, k)]):.3f})"
-                 for k in ks]
-        print(f"| {s} | " + " | ".join(cells) + " |")
-
+    ratios = ratios_over(a.data, recs, spps, len(ks),
+                         lambda layers, ref: image_errors(model, recon, layers, ref, [0.0] + ks))
+    print_ratios(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
+                 "RelMSE with K / with 0: geometric mean (worst image)",
+                 [f"K = {k:g}" for k in ks], ratios, spps)
 
 if __name__ == "__main__":
     main()

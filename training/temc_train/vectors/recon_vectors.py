@@ -175,7 +175,7 @@ def run(case, dtype):
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
                       case["fixed_range"], case["exposure"], case["upsample"],
                       case["range_opening"], aux, case["coarse_clamp"], case["range_noise"],
-                      case.get("coarse_gain", 1.0), case.get("coarse_radius", 0))
+                      case["coarse_gain"], case["coarse_radius"])
     return out[0].double().numpy()
 
 
