@@ -72,7 +72,10 @@ def test_a_recon_setting_is_a_variant_too():
 
     assert constants.parse_variant("recon.coarse_radius=4;recon.coarse_gain=0.5") == [
         (None, "coarse_radius", 4), (None, "coarse_gain", 0.5)]
-    for bad in ("recon.guide=1", "recon.upsample=2", "recon.no_such=1"):
+    assert constants.parse_variant("recon.fixed_range=0;recon.range_opening=plain") == [
+        (None, "fixed_range", False), (None, "range_opening", "plain")]
+    for bad in ("recon.guide=1", "recon.upsample=2", "recon.no_such=1", "recon.kernel=3",
+                "recon.coarse_clamp=0.5", "recon.range_noise=x"):
         assert refused(bad), bad
 
 

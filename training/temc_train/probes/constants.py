@@ -13,9 +13,10 @@ with the variant / RelMSE of the baseline, and the worst image's ratio.
         --set "recon.coarse_radius=4;recon.coarse_gain=0.5"
 
 A variant is `MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]`, MODULE one of `reconstruct` and
-`keep_mean`, NAME an existing numeric constant there, or MODULE `recon` and NAME a numeric
-reconstruction setting (models.RECON_DEFAULTS; the metadata's `temc.NAME`, e.g.
-`recon.coarse_radius=4;recon.coarse_gain=0.5`). The Rust core has its own copies of the
+`keep_mean`, NAME an existing numeric constant there, or MODULE `recon` and NAME a
+reconstruction setting a model may change without changing its network (train.SWITCHABLE;
+the metadata's `temc.NAME`, e.g. `recon.coarse_radius=4;recon.coarse_gain=0.5`,
+`recon.fixed_range=0`, `recon.range_opening=plain`). The Rust core has its own copies of the
 constants: a constant worth shipping is a contract change (docs/contracts.md), not a file
 edit here; a setting ships through ship.SHIP_RECON or FILE_RECON. A variant that leaves
 every image unchanged ends the probe with an error after the table (the constant never
@@ -34,7 +35,11 @@ from .. import color, evaluate as ev, keep_mean, reconstruct
 from ..checkpoint import Checkpoint
 from ..data import auto_input_scale
 from ..drivers.ship import FILE_RECON, SHIP_RECON
+from ..drivers.train import SWITCHABLE
 from ..models import RECON_DEFAULTS
+
+# The named choices of the string settings a variant may set.
+CHOICES = {"upsample": reconstruct.UPSAMPLES, "range_opening": reconstruct.RANGE_OPENINGS}
 
 MODULES = {"reconstruct": reconstruct, "keep_mean": keep_mean}
 
@@ -76,16 +81,38 @@ def print_ratios(head: str, labels: list, ratios: dict, spps) -> None:
         print(f"| {s} | " + " | ".join(cells) + " |")
 
 
+def recon_value(name: str, value: str):
+    """A `recon.NAME=VALUE` setting's value, typed as RECON_DEFAULTS' (0 or 1 for a switch,
+    one of the named choices for `upsample` and `range_opening`); None where NAME is not a
+    setting a model may change without changing its network (train.SWITCHABLE) or VALUE
+    does not fit it."""
+    if name not in SWITCHABLE:
+        return None
+    default = RECON_DEFAULTS[name]
+    if isinstance(default, str):
+        return value if value in CHOICES[name] else None
+    try:
+        number = float(value)
+    except ValueError:
+        return None
+    if isinstance(default, bool):
+        return bool(number) if number in (0.0, 1.0) else None
+    return type(default)(number)
+
+
 def parse_variant(text: str) -> list:
     """`MODULE.NAME=VALUE;...` as [(module, name, value)], module None for a `recon.NAME`
-    setting; refuses unknown names."""
+    setting; refuses unknown names and values."""
     out = []
     for item in text.split(";"):
         key, _, value = item.partition("=")
         mod_name, _, name = key.strip().partition(".")
-        default = RECON_DEFAULTS.get(name)
-        if mod_name == "recon" and isinstance(default, (int, float)) and not isinstance(default, bool):
-            out.append((None, name, type(default)(float(value))))
+        if mod_name == "recon":
+            v = recon_value(name, value.strip())
+            if v is None:
+                raise SystemExit(f"--set {item!r}: not a reconstruction setting a model may "
+                                 f"change ({', '.join(SWITCHABLE)}) with a value it takes")
+            out.append((None, name, v))
             continue
         mod = MODULES.get(mod_name)
         if mod is None or not isinstance(getattr(mod, name, None), (int, float)):

@@ -9,8 +9,10 @@ stage and prints the geometric-mean RelMSE ratio per spp (below 1: the stage hel
     python -m temc_train.probes.firefly_spread --data ../data/cycles-family \\
         --temc ../target/release/temc --model ../onnx/temc2-balanced.onnx 6:1.5 3:1.5 6:3
 
-Each positional argument is one variant K:SIGMA. Full aux (albedo, normal, depth), 2
-threads, every test scene at 4, 16 and 64 spp.
+Each positional argument is one variant K:SIGMA, or K:SIGMA:R to compare each pixel with
+the mean of the (2R+1)^2 window around it without the pixel itself (e.g. 20:1.5:2), which
+two adjacent fireflies do not hide from each other. Full aux (albedo, normal, depth), 2
+threads, every test scene at `--spp` (default 4, 16 and 64).
 """
 
 import argparse
@@ -42,13 +44,19 @@ def _blur(a: np.ndarray, g: np.ndarray) -> np.ndarray:
     return out
 
 
-def spread(color: np.ndarray, k: float, sigma: float, eps: float = 1e-4):
-    """`color` [H, W, 3] with each firefly's excess spread (module docs); returns (image,
-    number of fireflies)."""
+def _level(lum: np.ndarray, radius: int) -> np.ndarray:
+    """What a pixel is compared with: with `radius` 0 the brightest of its eight
+    neighbours; otherwise the mean of the (2 radius + 1)^2 window without the pixel itself
+    (edges replicated), which two adjacent fireflies do not hide from each other."""
+    others = [v for dy, dx, v in _windows(lum, max(radius, 1), edge=True) if (dy, dx) != (0, 0)]
+    return np.mean(others, axis=0) if radius else np.max(others, axis=0)
+
+
+def spread(color: np.ndarray, k: float, sigma: float, radius: int = 0, eps: float = 1e-4):
+    """`color` [H, W, 3] with each firefly's excess spread (module docs; `radius`: _level);
+    returns (image, number of fireflies)."""
     lum = color @ np.asarray(LUMA, color.dtype)
-    brightest = np.max([v for dy, dx, v in _windows(lum, 1, edge=True) if (dy, dx) != (0, 0)],
-                       axis=0)
-    cap = k * brightest + eps
+    cap = k * _level(lum, radius) + eps
     fly = lum > cap
     keep = np.where(fly, cap / np.maximum(lum, 1e-30), 1.0)
     excess = color * (1.0 - keep)[..., None]
@@ -76,32 +84,49 @@ def denoise(temc: str, model: str, layers: dict, color: np.ndarray, tmp: str) ->
     return ev.read_pfm(f"{tmp}/out.pfm")
 
 
+def parse_variant(text: str) -> tuple:
+    """`K:SIGMA[:R]` as (K, SIGMA, R), R 0 (the brightest neighbour) when absent."""
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise SystemExit(f"variant {text!r}: expected K:SIGMA or K:SIGMA:R")
+    return float(parts[0]), float(parts[1]), int(parts[2]) if len(parts) == 3 else 0
+
+
+def label(k: float, sigma: float, radius: int) -> str:
+    """A variant's column heading."""
+    against = f", {2 * radius + 1}x{2 * radius + 1} mean" if radius else ""
+    return f"K {k:g}, sigma {sigma:g}{against}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, help="the Cycles family (scenes/cycles)")
     ap.add_argument("--temc", required=True, help="the temc binary")
     ap.add_argument("--model", required=True, help="a temc ONNX model")
-    ap.add_argument("variants", nargs="*", default=["6:1.5"], help="K:SIGMA")
+    ap.add_argument("variants", nargs="*", default=["6:1.5"],
+                    help="K:SIGMA, or K:SIGMA:R to compare with the mean of the (2R+1)^2 "
+                         "window without the pixel instead of the brightest neighbour")
+    ap.add_argument("--spp", default="4,16,64")
     a = ap.parse_args()
-    variants = [tuple(float(v) for v in s.split(":")) for s in a.variants]
+    variants = [parse_variant(s) for s in a.variants]
+    spps = [int(s) for s in a.spp.split(",")]
     rows = {}
     test = os.path.join(a.data, "test")
     with tempfile.TemporaryDirectory() as tmp:
         for scene in sorted(os.listdir(test)):
             ref = ev.read_exr(os.path.join(test, scene, "ref.exr"))["color"]
-            for spp in (4, 16, 64):
+            for spp in spps:
                 layers = ev.read_exr(os.path.join(test, scene, f"spp{spp:04d}.exr"))
                 noisy = layers["color"].astype(np.float64)
                 errs = [ev.relmse(denoise(a.temc, a.model, layers, noisy, tmp), ref)]
-                for k, sigma in variants:
-                    img, flies = spread(noisy, k, sigma)
+                for k, sigma, radius in variants:
+                    img, _ = spread(noisy, k, sigma, radius)
                     errs.append(ev.relmse(denoise(a.temc, a.model, layers, img, tmp), ref))
                 rows[(scene, spp)] = errs
                 print(scene, spp, " ".join(f"{e:.4g}" for e in errs), flush=True)
-    print("| spp | RelMSE without | " + " | ".join(f"K {k:g}, sigma {s:g}" for k, s in variants)
-          + " |")
+    print("| spp | RelMSE without | " + " | ".join(label(*v) for v in variants) + " |")
     print("|---:|---:|" + "---:|" * len(variants))
-    for spp in (4, 16, 64):
+    for spp in spps:
         e = np.array([v for (_, p), v in rows.items() if p == spp])
         g = np.exp(np.mean(np.log(e), axis=0))
         print(f"| {spp} | {g[0]:.4g} | " + " | ".join(f"{x / g[0]:.3f}x" for x in g[1:]) + " |")
