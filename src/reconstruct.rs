@@ -38,8 +38,10 @@ const GREY_PULL: f32 = 1.0e-6;
 /// (multi-level models): fy and fc 4, the composed level 1 one, the three chroma
 /// corrections 3, the sigmoid of a blend 1, the correction being made 1 and its coarse
 /// detail a quarter, and with `temc.coarse_radius` the local mean it is capped against 1
-/// (while that mean is made, it and two planes stand in for the last three): 11.25.
-pub const SCRATCH_PLANES: f64 = 11.25;
+/// (while that mean is made, it and two planes stand in for the last three): 11.25. With
+/// `temc.coarse_sparse` each composed level's rise is kept from filtering to composing, a
+/// third of a plane more than level 0's at most: 12.6.
+pub const SCRATCH_PLANES: f64 = 12.6;
 
 /// Pixels per row block: the weights of all taps of a block (k^2 x BLOCK) stay in L1/L2.
 const BLOCK: usize = 128;
@@ -74,6 +76,10 @@ pub const COARSE_GAIN: f32 = 1.0;
 
 /// The largest window radius the coarse clamp may cap against (`temc.coarse_radius`).
 pub const COARSE_RADIUS_MAX: usize = 8;
+
+/// With `temc.coarse_sparse` = s the cap rises by max(1, s / max(d, this)), d the share of
+/// the window's pixels lit at that level: the floor bounds the rise at s / 0.1.
+pub const COARSE_SPARSE_FLOOR: f32 = 0.1;
 
 /// The chroma composition's common cap (step 4): a coarse correction leaves every channel
 /// at least this share of its fine value, so it cannot swing a pixel's hue to one primary.
@@ -152,6 +158,12 @@ pub struct Params {
     /// sparse dark pixel beside lit ones is then filled, a firefly's dark surroundings
     /// stay capped.
     pub coarse_radius: usize,
+    /// With the coarse clamp, where fewer than this share of the window's pixels (the
+    /// level's input luminance above 0) are lit, the cap rises by `coarse_sparse / d`, at
+    /// most `coarse_sparse /` [`COARSE_SPARSE_FLOOR`] (`temc.coarse_sparse`; 0, no rise, in
+    /// files without it; in [0, 1]): there the black pixels are holes between samples, not
+    /// a firefly's dark surroundings.
+    pub coarse_sparse: f32,
     /// How the composition brings a coarse level's correction to the finer one
     /// (`temc.upsample`).
     pub upsample: Upsample,
@@ -236,12 +248,15 @@ pub fn reconstruct(
     let mut opened = aux.map(|a| aux_opened(&luminance(&x, hw), a, h, w));
     let (mut hl, mut wl) = (h, w);
     let mut outs = Vec::with_capacity(p.levels);
+    let mut rises = Vec::with_capacity(p.levels);
     for (l, f) in filters.iter().enumerate() {
         if l > 0 {
             x = downsample(&x, 3, hl, wl);
             opened = opened.map(|o| downsample(&o, 1, hl, wl));
             (hl, wl) = (hl / 2, wl / 2);
         }
+        let composed = l + 1 < p.levels && p.coarse_clamp && p.coarse_sparse > 0.0;
+        rises.push(composed.then(|| sparse_rise(&x, hl, wl, p.coarse_radius, p.coarse_sparse)));
         let level = Level {
             x: &x,
             f,
@@ -257,9 +272,14 @@ pub fn reconstruct(
         let (hl, wl) = (h >> l, w >> l);
         let n = hl * wl;
         let f = filters[l];
+        let rise = rises[l].take();
         let how = (
             p.upsample,
-            p.coarse_clamp.then_some((p.coarse_gain, p.coarse_radius)),
+            p.coarse_clamp.then_some(Cap {
+                gain: p.coarse_gain,
+                radius: p.coarse_radius,
+                rise: rise.as_deref(),
+            }),
         );
         let dy = correction(&fy, &cy, &f[2 * k2 * n..][..n], hl, wl, how);
         fy.iter_mut().zip(&dy).for_each(|(v, d)| *v += d);
@@ -329,6 +349,12 @@ fn validate(
             "coarse_gain must be finite and > 0 and coarse_radius at most {COARSE_RADIUS_MAX}, \
              got {} and {}",
             p.coarse_gain, p.coarse_radius
+        ));
+    }
+    if p.coarse_clamp && !(0.0..=1.0).contains(&p.coarse_sparse) {
+        return bad(format!(
+            "coarse_sparse must be in [0, 1], got {}",
+            p.coarse_sparse
         ));
     }
     if filters.len() != p.levels {
@@ -926,26 +952,51 @@ fn add_chroma_correction(fc: &mut [f32], dc: &[Vec<f32>], n: usize) {
     }
 }
 
-/// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, with the coarse clamp
-/// `Some((gain, radius))` each capped at `gain` times the fine value (radius 0) or its
-/// (2 radius + 1)^2 mean: what step 4 of the spec adds to `fine`.
+/// The coarse clamp at one level: a correction adds at most `gain` times the fine value
+/// (radius 0) or its (2 radius + 1)^2 mean, times `rise` per pixel where given.
+#[derive(Clone, Copy)]
+struct Cap<'a> {
+    gain: f32,
+    radius: usize,
+    rise: Option<&'a [f32]>,
+}
+
+/// The coarse cap's rise at one level (`temc.coarse_sparse` = `share`):
+/// max(1, share / max(d, [`COARSE_SPARSE_FLOOR`])), d the share of the (2 radius + 1)^2
+/// window's pixels (edges replicated) whose luminance in `x` [3, H, W] is above 0.
+fn sparse_rise(x: &[f32], h: usize, w: usize, radius: usize, share: f32) -> Vec<f32> {
+    let lit: Vec<f32> = luminance(x, h * w)
+        .iter()
+        .map(|&y| if y > 0.0 { 1.0 } else { 0.0 })
+        .collect();
+    let mut d = box_mean(&lit, h, w, 2 * radius + 1);
+    d.iter_mut()
+        .for_each(|v| *v = (share / v.max(COARSE_SPARSE_FLOOR)).max(1.0));
+    d
+}
+
+/// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, each capped by the coarse clamp
+/// where given ([`Cap`]): what step 4 of the spec adds to `fine`.
 fn correction(
     fine: &[f32],
     coarse: &[f32],
     blend: &[f32],
     h: usize,
     w: usize,
-    (up, clamp): (Upsample, Option<(f32, usize)>),
+    (up, clamp): (Upsample, Option<Cap<'_>>),
 ) -> Vec<f32> {
     let means = match clamp {
-        Some((_, r)) if r > 0 => {
+        Some(Cap { radius: r, .. }) if r > 0 => {
             let lit: Vec<f32> = fine.iter().map(|v| v.max(0.0)).collect();
             Some(box_mean(&lit, h, w, 2 * r + 1))
         }
         _ => None,
     };
     let cap = |i: usize, f: f32, c: f32| match clamp {
-        Some((gain, _)) => c.min(gain * means.as_ref().map_or(f.max(0.0), |m| m[i])),
+        Some(Cap { gain, rise, .. }) => {
+            let base = gain * means.as_ref().map_or(f.max(0.0), |m| m[i]);
+            c.min(rise.map_or(base, |r| base * r[i]))
+        }
         None => c,
     };
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
@@ -1111,6 +1162,7 @@ mod tests {
             coarse_clamp: false,
             coarse_gain: COARSE_GAIN,
             coarse_radius: 0,
+            coarse_sparse: 0.0,
             range_noise: 0.0,
         }
     }
@@ -1425,6 +1477,24 @@ mod tests {
             w
         ));
         assert!(reconstruct(&demod, &rgb, Some(&rgb), None, &ok, h, w).is_ok());
+        let cap = |coarse_gain, coarse_radius, coarse_sparse| Params {
+            coarse_clamp: true,
+            coarse_gain,
+            coarse_radius,
+            coarse_sparse,
+            ..p
+        };
+        assert!(reconstruct(&cap(0.5, 4, 0.5), &rgb, None, None, &ok, h, w).is_ok());
+        for (gain, radius, sparse) in [
+            (0.0, 0, 0.0),
+            (f32::NAN, 0, 0.0),
+            (1.0, COARSE_RADIUS_MAX + 1, 0.0),
+            (1.0, 0, 1.5),
+            (1.0, 0, -0.1),
+            (1.0, 0, f32::NAN),
+        ] {
+            assert!(err(&cap(gain, radius, sparse), &rgb, None, &ok, h, w));
+        }
     }
 
     #[test]
@@ -1748,6 +1818,60 @@ mod tests {
         );
     }
 
+    /// The cap's rise where samples are sparse (`temc.coarse_sparse`; the Python test of
+    /// the same name): one lit pixel in every 4x4 block, identity kernels at the fine
+    /// level, a box at level 1, blends open, capped at half the 5x5 mean. With the rise
+    /// (one to four lit pixels in 25: 5x to 3x) the black pixels between the samples come
+    /// out about twice as bright, never brighter than with no cap; a dim floor lit
+    /// everywhere, firefly and all, rises by 1: the same image.
+    #[test]
+    fn the_coarse_cap_rises_where_samples_are_sparse() {
+        let (h, w, k, levels) = (16, 16, 3, 2);
+        let n = h * w;
+        let identity_fine = |l: usize| {
+            let nl = (h >> l) * (w >> l);
+            let mut f = vec![0.0; channels(k, false) * nl];
+            if l == 0 {
+                f[..2 * k * k * nl].fill(-LOGIT_MAX);
+                f[4 * nl..5 * nl].fill(LOGIT_MAX); // luma centre tap
+                f[13 * nl..14 * nl].fill(LOGIT_MAX); // chroma centre tap
+            }
+            f[2 * k * k * nl..].fill(LOGIT_MAX); // blends open
+            f
+        };
+        let f: Vec<Vec<f32>> = (0..levels).map(identity_fine).collect();
+        let lit = |i: usize| (i % n / w).is_multiple_of(4) && (i % n % w).is_multiple_of(4);
+        let sparse: Vec<f32> = (0..3 * n).map(|i| if lit(i) { 4.0 } else { 0.0 }).collect();
+        let capped = |share| Params {
+            coarse_clamp: true,
+            coarse_gain: 0.5,
+            coarse_radius: 2,
+            coarse_sparse: share,
+            ..params(levels, k)
+        };
+        let black_mean = |out: &[f32]| {
+            let black: Vec<usize> = (0..n).filter(|&i| !lit(i)).collect();
+            black.iter().map(|&i| lum(out, n, i)).sum::<f32>() / black.len() as f32
+        };
+        let base = run(&capped(0.0), &sparse, None, &f, h, w);
+        let risen = run(&capped(0.5), &sparse, None, &f, h, w);
+        let free = run(&params(levels, k), &sparse, None, &f, h, w);
+        assert!(
+            black_mean(&risen) > 1.8 * black_mean(&base),
+            "{} {}",
+            black_mean(&risen),
+            black_mean(&base)
+        );
+        assert!((0..n).all(|i| lum(&risen, n, i) <= lum(&free, n, i) + 1e-6));
+        let dark: Vec<f32> = (0..3 * n)
+            .map(|i| if i % n == 9 * w + 6 { 700.0 } else { 0.01 })
+            .collect();
+        assert_eq!(
+            run(&capped(0.0), &dark, None, &f, h, w),
+            run(&capped(0.5), &dark, None, &f, h, w)
+        );
+    }
+
     /// The chroma composition's common cap (recon_vectors' chroma_cap case): dark warm
     /// pixels in a 2x2 block with an orange bright one, the fine chroma kernel one-hot, the
     /// coarse one a box, blends open. The coarse correction drives their red and green far
@@ -1850,6 +1974,7 @@ mod tests {
                 coarse_clamp: case["coarse_clamp"].as_bool().unwrap_or(false),
                 coarse_gain: case["coarse_gain"].as_f64().unwrap_or(1.0) as f32,
                 coarse_radius: case["coarse_radius"].as_u64().unwrap_or(0) as usize,
+                coarse_sparse: case["coarse_sparse"].as_f64().unwrap_or(0.0) as f32,
                 range_noise: case["range_noise"].as_f64().unwrap_or(0.0) as f32,
             };
             let rgb = json_vec(&case["rgb"]);

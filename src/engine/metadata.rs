@@ -72,6 +72,9 @@ pub struct ModelInfo {
     /// The coarse clamp's window radius (`temc.coarse_radius`; optional, absent means 0:
     /// each pixel's own fine value).
     pub coarse_radius: usize,
+    /// The coarse clamp's rise where samples are sparse (`temc.coarse_sparse`; optional,
+    /// absent means 0: no rise).
+    pub coarse_sparse: f32,
     /// The fixed range term's threshold from local noise, K (`temc.range_noise`; optional,
     /// absent or 0 means the fixed threshold everywhere).
     pub range_noise: f32,
@@ -158,6 +161,7 @@ impl ModelInfo {
         let coarse_clamp = flag("temc.coarse_clamp")?;
         let range_noise = range_noise(&raw)?;
         let (coarse_gain, coarse_radius) = coarse_cap(&raw)?;
+        let coarse_sparse = coarse_sparse(&raw)?;
         let upsample = named(
             &raw,
             "temc.upsample",
@@ -238,6 +242,7 @@ impl ModelInfo {
             coarse_clamp,
             coarse_gain,
             coarse_radius,
+            coarse_sparse,
             range_noise,
             passes,
             pq_nits_per_unit,
@@ -290,6 +295,12 @@ fn coarse_cap(raw: &BTreeMap<String, String>) -> Result<(f32, usize), Error> {
     let within = format!("an integer in 0..={MAX}");
     let radius = optional(raw, "temc.coarse_radius", 0, |r| *r <= MAX, &within)?;
     Ok((gain, radius))
+}
+
+/// `temc.coarse_sparse`: absent means 0 (no rise); else a number in [0, 1].
+fn coarse_sparse(raw: &BTreeMap<String, String>) -> Result<f32, Error> {
+    let ok = |s: &f32| (0.0..=1.0).contains(s);
+    optional(raw, "temc.coarse_sparse", 0.0, ok, "a number in [0, 1]")
 }
 
 /// An optional numeric key: absent, `default`; else its value if it parses as `T` and is
@@ -385,6 +396,7 @@ mod tests {
             ("temc.range_noise", "6.0"),
             ("temc.coarse_gain", "0.75"),
             ("temc.coarse_radius", "2"),
+            ("temc.coarse_sparse", "0.5"),
             ("other.key", "ignored"),
         ]
     }
@@ -408,17 +420,20 @@ mod tests {
         assert!(m.coarse_clamp);
         assert_eq!(m.range_noise, 6.0);
         assert_eq!((m.coarse_gain, m.coarse_radius), (0.75, 2));
+        assert_eq!(m.coarse_sparse, 0.5);
         let optional = [
             "temc.range_opening",
             "temc.range_noise",
             "temc.coarse_gain",
             "temc.coarse_radius",
+            "temc.coarse_sparse",
         ];
         let without = card().into_iter().filter(|(k, _)| !optional.contains(k));
         let m = ModelInfo::from_props(without).unwrap();
         assert_eq!(m.range_opening, RangeOpening::Plain);
         assert_eq!(m.range_noise, 0.0);
         assert_eq!((m.coarse_gain, m.coarse_radius), (1.0, 0));
+        assert_eq!(m.coarse_sparse, 0.0);
     }
 
     #[test]
@@ -461,6 +476,9 @@ mod tests {
             ("temc.coarse_radius", Some("9")),
             ("temc.coarse_radius", Some("1.5")),
             ("temc.coarse_radius", Some("-1")),
+            ("temc.coarse_sparse", Some("1.5")),
+            ("temc.coarse_sparse", Some("-0.1")),
+            ("temc.coarse_sparse", Some("nan")),
             ("temc.train_steps", None),
         ] {
             let props: Vec<_> = card()

@@ -453,6 +453,7 @@ fn denoise_tile(
         coarse_clamp: info.coarse_clamp,
         coarse_gain: info.coarse_gain,
         coarse_radius: info.coarse_radius,
+        coarse_sparse: info.coarse_sparse,
         range_noise: info.range_noise,
     };
     let refs = filters.levels()?;

@@ -131,6 +131,7 @@ class Checkpoint:
         model.coarse_clamp = r["coarse_clamp"]
         model.range_noise = r["range_noise"]
         model.coarse_gain, model.coarse_radius = r["coarse_gain"], r["coarse_radius"]
+        model.coarse_sparse = r["coarse_sparse"]
         return model, arch, float(width)
 
     def averaged(self, *others: "Checkpoint") -> "Checkpoint":

@@ -33,7 +33,7 @@ SPLITS = ("both", "one")
 RECON_DEFAULTS = {"levels": LEVELS, "kernel": KERNEL, "split": "both", "demodulate": False,
                   "eps": 0.01, "guide": False, "fixed_range": False, "upsample": "nearest",
                   "range_opening": "plain", "coarse_clamp": False, "range_noise": 0.0,
-                  "coarse_gain": 1.0, "coarse_radius": 0}
+                  "coarse_gain": 1.0, "coarse_radius": 0, "coarse_sparse": 0.0}
 # The architectures' names in the paper, the accuracy report and the model cards.
 ARCH_NAMES = {"ae": "AE", "demc": "DEMC", "temc1": "TEMC-1", "temc2": "TEMC-2"}
 

@@ -45,7 +45,8 @@ def recon_of(model) -> dict:
             "coarse_clamp": bool(getattr(model, "coarse_clamp", d["coarse_clamp"])),
             "range_noise": float(getattr(model, "range_noise", d["range_noise"])),
             "coarse_gain": float(getattr(model, "coarse_gain", d["coarse_gain"])),
-            "coarse_radius": int(getattr(model, "coarse_radius", d["coarse_radius"]))}
+            "coarse_radius": int(getattr(model, "coarse_radius", d["coarse_radius"])),
+            "coarse_sparse": float(getattr(model, "coarse_sparse", d["coarse_sparse"]))}
 
 
 def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps: int = 0,
@@ -77,6 +78,7 @@ def metadata(arch: str, width: float, recon: dict, dataset: str = "none", steps:
         "temc.range_noise": repr(float(recon.get("range_noise", 0.0))),
         "temc.coarse_gain": repr(float(recon.get("coarse_gain", 1.0))),
         "temc.coarse_radius": str(int(recon.get("coarse_radius", 0))),
+        "temc.coarse_sparse": repr(float(recon.get("coarse_sparse", 0.0))),
         "temc.chroma_encoding": "hs",
         "temc.aux_layout": "albedo:3,normal:3,depth:1",
         "temc.pq_nits_per_unit": f"{color.NITS_PER_UNIT:g}",

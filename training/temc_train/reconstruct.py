@@ -46,6 +46,13 @@ RANGE_OPENINGS = ("plain", "aux")
 # (docs/reconstruction.md, "The coarse cap against a local mean").
 COARSE_GAIN = 1.0
 COARSE_RADIUS_MAX = 8
+# With `temc.coarse_sparse` = T > 0 the cap rises where a level is sparse: times
+# max(1, T / max(d, COARSE_SPARSE_FLOOR)), d the share of the window's pixels whose input
+# luminance at that level is above 0. Where most pixels are black because few paths found
+# light, the black ones are holes between samples, not a firefly's dark surroundings
+# (docs/reconstruction.md, "The coarse cap where samples are sparse"). The floor bounds the
+# rise at T / COARSE_SPARSE_FLOOR.
+COARSE_SPARSE_FLOOR = 0.1
 # The chroma composition's common cap (docs/reconstruction.md, step 4): a coarse correction
 # leaves every channel at least CHROMA_KEEP of its fine value; CHROMA_EPS keeps the cap's
 # ratio finite where a channel has neither value nor correction (the cap is then 1).
@@ -232,20 +239,33 @@ def _compose(fine, coarse, blend, upsample="nearest", clamp=None):
     """Vogels et al. 2018: the fine level's detail plus the coarse level's low frequencies.
     The correction, not each term, is upsampled: with `bilinear` the coarse level's blocks
     no longer show as 2x2 steps in flat regions (docs/reconstruction.md, step 4). `clamp`
-    (gain, radius), or None: the correction is capped (_cap)."""
+    (gain, radius, rise), or None: the correction is capped (_cap)."""
     return fine + _correction(fine, coarse, blend, upsample, clamp)
 
 
-def _cap(fine, gain, radius):
+def _cap(fine, gain, radius, rise=None):
     """What a coarse correction may add: `gain` times the fine value (clamped at 0), or
-    with `radius` > 0 times its (2 radius + 1)^2 mean, edges replicated. The mean lets a
-    coarse level fill a sparse 1-spp-like dark pixel beside lit ones, which its own value
-    would hold at black, while a firefly's dark surroundings stay capped."""
+    with `radius` > 0 times its (2 radius + 1)^2 mean, edges replicated; times `rise`
+    (sparse_rise) where given. The mean lets a coarse level fill a sparse 1-spp-like dark
+    pixel beside lit ones, which its own value would hold at black, while a firefly's dark
+    surroundings stay capped."""
     f = fine.clamp(min=0.0)
-    if not radius:
-        return gain * f
-    side = 2 * radius + 1
-    return gain * F.avg_pool2d(F.pad(f, (radius,) * 4, mode="replicate"), side, stride=1)
+    cap = gain * (_box_mean(f, radius) if radius else f)
+    return cap if rise is None else cap * rise
+
+
+def _box_mean(x, radius):
+    """The (2 radius + 1)^2 mean around each pixel, edges replicated."""
+    return F.avg_pool2d(F.pad(x, (radius,) * 4, mode="replicate"), 2 * radius + 1, stride=1)
+
+
+def sparse_rise(x, radius, share):
+    """[N, 1, H, W] factor on the coarse cap at one level (`temc.coarse_sparse` = `share`):
+    max(1, share / max(d, COARSE_SPARSE_FLOOR)), d the share of the (2 radius + 1)^2
+    window's pixels (edges replicated) whose luminance in `x` (the level's input) is above
+    0. A constant of the input: no gradient flows through it."""
+    lit = (_lum(x) > 0).to(x.dtype)
+    return (share / _box_mean(lit, radius).clamp(min=COARSE_SPARSE_FLOOR)).clamp(min=1.0)
 
 
 def _correction(fine, coarse, blend, upsample, clamp):
@@ -284,7 +304,8 @@ def _recombine(cy, cc):
 
 def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=False, guide=False,
                 fixed_range=False, scale=1.0, upsample="nearest", range_opening="plain", aux=None,
-                coarse_clamp=False, range_noise=0.0, coarse_gain=COARSE_GAIN, coarse_radius=0):
+                coarse_clamp=False, range_noise=0.0, coarse_gain=COARSE_GAIN, coarse_radius=0,
+                coarse_sparse=0.0):
     """[N, 3, H, W] reconstruction of linear `rgb` from `filters[l]`
     [N, channels(kernel, guide), H / 2^l, W / 2^l]; `albedo` is read only when demodulating.
     `fixed_range`: add fixed_range_term at every level; `scale` (a number or [N, 1, 1, 1])
@@ -295,7 +316,8 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     with aux_opened on `aux` (the network's [N, 7, H, W] aux planes), `plain` per level.
     `coarse_clamp` (`temc.coarse_clamp`): cap each coarse correction at `coarse_gain`
     (`temc.coarse_gain`) times the fine value, or with `coarse_radius` (`temc.coarse_radius`)
-    times its local mean (_cap).
+    times its local mean (_cap), and with `coarse_sparse` (`temc.coarse_sparse`) raised where
+    the level is sparse (sparse_rise).
     `range_noise` (`temc.range_noise`): the fixed range term's threshold from local noise
     (range_threshold; 0: RANGE_TAU everywhere)."""
     if range_opening not in RANGE_OPENINGS:
@@ -305,6 +327,8 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
                              and coarse_radius == int(coarse_radius)):
         raise ValueError(f"coarse_gain must be finite and > 0 and coarse_radius an integer in "
                          f"0..={COARSE_RADIUS_MAX}, got {coarse_gain!r}, {coarse_radius!r}")
+    if not 0.0 <= coarse_sparse <= 1.0:  # also refuses NaN
+        raise ValueError(f"coarse_sparse must be in [0, 1], got {coarse_sparse!r}")
     for level, f in enumerate(filters):
         want = (rgb.shape[0], channels(kernel, guide), rgb.shape[2] >> level, rgb.shape[3] >> level)
         if tuple(f.shape) != want:
@@ -315,15 +339,18 @@ def reconstruct(rgb, albedo, filters, kernel, demodulate=False, eps=0.01, ldr=Fa
     if guided and aux is None:
         raise ValueError("range_opening 'aux' needs the aux planes")
     opened_ys = range_planes(x, len(filters), aux if guided else None)
-    levels = []
+    levels, rises = [], []
+    sparse = coarse_clamp and coarse_sparse > 0
     for level, f in enumerate(filters):
         if level:
             x = F.avg_pool2d(x, 2)
         levels.append(_filter_level(x, f, kernel, guide, fixed_range, scale, opened_ys[level],
                                     range_noise))
+        rises.append(sparse_rise(x, int(coarse_radius), coarse_sparse)
+                     if sparse and level < len(filters) - 1 else None)
     cy, cc = levels[-1][:2]
-    clamp = (coarse_gain, int(coarse_radius)) if coarse_clamp else None
-    for fy, fc, a, b in reversed(levels[:-1]):
+    for (fy, fc, a, b), rise in reversed(list(zip(levels[:-1], rises))):
+        clamp = (coarse_gain, int(coarse_radius), rise) if coarse_clamp else None
         cy = _compose(fy, cy, a, upsample, clamp)
         cc = _compose_chroma(fc, cc, b, upsample, clamp)
     out = _recombine(cy, cc)
@@ -343,6 +370,7 @@ def options(recon: dict) -> dict:
             "coarse_clamp": recon.get("coarse_clamp", False),
             "range_noise": recon.get("range_noise", 0.0),
             "coarse_gain": recon.get("coarse_gain", COARSE_GAIN),
+            "coarse_sparse": recon.get("coarse_sparse", 0.0),
             "coarse_radius": recon.get("coarse_radius", 0)}
 
 

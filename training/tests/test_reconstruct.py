@@ -374,18 +374,22 @@ def test_the_coarse_clamp_caps_what_coarse_levels_add():
     assert float((free / fine).max()) > 10.0
 
 
+def identity_over_box():
+    """Two levels of 3x3 logits on 16x16: identity kernels at the fine level, a box at level
+    1, blends open (the coarse cap tests')."""
+    fine = torch.zeros(1, channels(3), 16, 16)
+    fine[:, :18] = -LOGIT_MAX
+    fine[:, 4] = fine[:, 13] = LOGIT_MAX  # the centre taps
+    fine[:, 18:] = LOGIT_MAX
+    return [fine, torch.zeros(1, channels(3), 8, 8)]
+
+
 def test_the_coarse_cap_against_a_local_mean_fills_sparse_pixels():
     # The Rust test of the same name: one lit pixel in every other 2x2 block, identity
     # kernels at the fine level, a box at level 1, blends open. Capped against its own value
     # a black pixel stays black; against its 5x5 mean the coarse level fills it. Outside a
     # firefly's own 5x5 its dark surroundings stay at most twice the dark level.
-    def filters():
-        fine = torch.zeros(1, channels(3), 16, 16)
-        fine[:, :18] = -LOGIT_MAX
-        fine[:, 4] = fine[:, 13] = LOGIT_MAX  # the centre taps
-        fine[:, 18:] = LOGIT_MAX
-        coarse = torch.zeros(1, channels(3), 8, 8)
-        return [fine, coarse]
+    filters = identity_over_box
 
     yy, xx = torch.meshgrid(torch.arange(16), torch.arange(16), indexing="ij")
     lit = (yy % 2 == 0) & (xx % 2 == 0) & ((yy // 2 + xx // 2) % 2 == 0)
@@ -402,9 +406,33 @@ def test_the_coarse_cap_against_a_local_mean_fills_sparse_pixels():
     assert float(capped[0, 11, 9]) <= 0.02 + 1e-4
 
 
+def test_the_coarse_cap_rises_where_samples_are_sparse():
+    # The Rust test of the same name: one lit pixel in every 4x4 block under
+    # identity_over_box, capped at half the 5x5 mean. With coarse_sparse 0.5 the cap rises
+    # (one to four lit pixels in 25: the bound, 5x, to 3x) and the black pixels between the
+    # samples come out about twice as bright, never brighter than with no cap at all; a dim
+    # floor that is lit everywhere, firefly and all, has a rise of 1: the same image.
+    yy, xx = torch.meshgrid(torch.arange(16), torch.arange(16), indexing="ij")
+    lit = (yy % 4 == 0) & (xx % 4 == 0)
+    sparse = (4.0 * lit).expand(1, 3, 16, 16).float()
+    kw = dict(coarse_clamp=True, coarse_gain=0.5, coarse_radius=2)
+    base = lum(reconstruct(sparse, None, identity_over_box(), 3, **kw))[0][~lit]
+    risen = lum(reconstruct(sparse, None, identity_over_box(), 3, coarse_sparse=0.5, **kw))[0][~lit]
+    assert float(risen.mean()) > 1.8 * float(base.mean()), (risen.mean(), base.mean())
+    free = lum(reconstruct(sparse, None, identity_over_box(), 3))[0][~lit]
+    assert bool((risen <= free + 1e-6).all())  # it loosens the cap, never adds past none
+    dark = torch.full((1, 3, 16, 16), 0.01)
+    dark[:, :, 9, 6] = 700.0
+    assert torch.equal(reconstruct(dark, None, identity_over_box(), 3, **kw),
+                       reconstruct(dark, None, identity_over_box(), 3, coarse_sparse=0.5, **kw))
+
+
 def test_the_coarse_cap_refuses_a_bad_gain_or_radius():
     rgb = torch.ones(1, 3, 8, 8)
     f = [torch.zeros(1, channels(3), 8, 8), torch.zeros(1, channels(3), 4, 4)]
     for gain, radius in ((0.0, 0), (math.inf, 0), (1.0, 9), (1.0, 1.5), (1.0, -1)):
         with pytest.raises(ValueError):
             reconstruct(rgb, None, f, 3, coarse_clamp=True, coarse_gain=gain, coarse_radius=radius)
+    for share in (-0.1, 1.5, math.nan):
+        with pytest.raises(ValueError):
+            reconstruct(rgb, None, f, 3, coarse_clamp=True, coarse_sparse=share)

@@ -39,6 +39,8 @@ RECON_FLAGS = (
      "temc.range_noise: the fixed range term's threshold from local noise"),
     ("--coarse-gain", {"type": float}, "temc.coarse_gain: the coarse clamp's gain"),
     ("--coarse-radius", {"type": int}, "temc.coarse_radius: the coarse clamp's window radius"),
+    ("--coarse-sparse", {"type": float},
+     "temc.coarse_sparse: raise the coarse clamp where a level's samples are sparse"),
 )
 
 

@@ -57,8 +57,12 @@ SHIP_RECON = {"fixed_range": True, "range_opening": "aux", "range_noise": 6.0}
 # The cap is half the mean of the finer values over 9x9 (gain 0.5, radius 4), not the
 # pixel's own value: chosen without retraining on 24 of our validation scenes, RelMSE
 # 0.97-0.998x at 1-64 spp (docs/reconstruction.md, "The coarse cap against a local mean").
+# Where fewer than half a window's pixels are lit, the cap rises by 0.5 / that share (at most
+# 5x): chosen without retraining, RelMSE on the Cycles family 0.94-0.98x at 1 and 4 spp,
+# our held-out families and validation scenes unchanged (docs/reconstruction.md, "The
+# coarse cap where samples are sparse").
 FILE_RECON = {file: {"coarse_clamp": True, "upsample": "bilinear", "coarse_gain": 0.5,
-                     "coarse_radius": 4}
+                     "coarse_radius": 4, "coarse_sparse": 0.5}
               for file in ("temc2-balanced", "temc2-high")}
 # Flip passes a filter runs by default (`temc.passes`; 1 when absent): high averages the
 # tile and its half turn, 2-5 % lower RelMSE than one pass on the Cycles family at twice
@@ -234,6 +238,10 @@ def coarse_clamp_text(file, ck, recon: dict) -> str:
             f"{against})" + since(ck, "coarse_clamp", shipped_with(file, "coarse_clamp")))
     if gain != 1.0 or radius:
         text += "its gain and window" + since(ck, "coarse_radius", shipped_with(file, "coarse_radius"))
+    sparse = recon.get("coarse_sparse", 0.0)
+    if sparse:
+        text += (f"its rise where fewer than {sparse:g} of a window's pixels are lit"
+                 + since(ck, "coarse_sparse", shipped_with(file, "coarse_sparse")))
     return text
 
 

@@ -60,10 +60,10 @@ from .distributed import Group
 
 
 # The reconstruction settings a resumed run may change (recon_settings' keys): the fixed
-# range term, the composition's upsampling, the range term's opening, the coarse clamp and
-# its gain and radius, the range term's threshold from local noise.
+# range term, the composition's upsampling, the range term's opening, the coarse clamp, its
+# gain, radius and rise where samples are sparse, the range term's threshold from local noise.
 SWITCHABLE = ("fixed_range", "upsample", "range_opening", "coarse_clamp", "range_noise",
-              "coarse_gain", "coarse_radius")
+              "coarse_gain", "coarse_radius", "coarse_sparse")
 
 
 def recon_settings(a) -> dict:
@@ -73,7 +73,7 @@ def recon_settings(a) -> dict:
             "fixed_range": bool(a.fixed_range), "upsample": a.upsample,
             "range_opening": a.range_opening, "coarse_clamp": bool(a.coarse_clamp),
             "range_noise": float(a.range_noise), "coarse_gain": float(a.coarse_gain),
-            "coarse_radius": int(a.coarse_radius)}
+            "coarse_radius": int(a.coarse_radius), "coarse_sparse": float(a.coarse_sparse)}
 
 
 def denoise(model, xs, rs: dict, amp=contextlib.nullcontext()):
@@ -651,6 +651,10 @@ def arg_parser() -> argparse.ArgumentParser:
                     help="temc.coarse_radius: cap against the fine values' (2r+1)^2 mean, not "
                          "the pixel's own (docs/reconstruction.md, \"The coarse cap against a "
                          "local mean\"); a run may switch it")
+    ap.add_argument("--coarse-sparse", type=float, default=0.0,
+                    help="temc.coarse_sparse: raise the coarse clamp where fewer than this "
+                         "share of a window's pixels are lit (docs/reconstruction.md, \"The "
+                         "coarse cap where samples are sparse\"); a run may switch it")
     ap.add_argument("--range-noise", type=float, default=0.0,
                     help="the fixed range term's threshold from local noise, K of "
                          "temc.range_noise (0: RANGE_TAU everywhere; docs/reconstruction.md, "

@@ -11,6 +11,9 @@ with the variant / RelMSE of the baseline, and the worst image's ratio.
     python -m temc_train.probes.constants --data ../data/spectral-v2 --prefix holdout \\
         --spp 4,16,64 --checkpoint runs/temc2-w0.125-l3/checkpoint.pt \\
         --set "recon.coarse_radius=4;recon.coarse_gain=0.5"
+    python -m temc_train.probes.constants --data ../data/cycles-family --file temc2-balanced \\
+        --checkpoint runs/temc2-w0.125-l3/checkpoint.pt --base recon.coarse_sparse=0 \\
+        --set recon.coarse_sparse=0.5
 
 A variant is `MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]`, MODULE one of `reconstruct` and
 `keep_mean`, NAME an existing numeric constant there, or MODULE `recon` and NAME a
@@ -138,12 +141,13 @@ def patched(assignments: list):
             setattr(mod, name, value)
 
 
-def image_errors(model, recon, layers, ref, variants):
-    """RelMSE of one noisy render under the baseline, then each variant; and the images."""
+def image_errors(model, recon, layers, ref, variants, base=()):
+    """RelMSE of one noisy render under the baseline, then each variant; and the images.
+    `base` (parse_variant's list) applies to the baseline and under every variant."""
     aux = np.moveaxis(color.aux_channels(layers["albedo"], layers["normal"], layers["depth"]), 0, -1)
     scale = auto_input_scale(layers["color"])
     images = []
-    for assignments in [[]] + variants:
+    for assignments in [list(base)] + [list(base) + v for v in variants]:
         settings = dict(recon, **{name: v for mod, name, v in assignments if mod is None})
         with patched(assignments):
             images += reconstruct.denoise_variants(model, [settings], layers["color"], aux, scale)
@@ -158,12 +162,16 @@ def main(argv=None):
                     help="a variant: MODULE.NAME=VALUE[;MODULE.NAME=VALUE...]; repeat for more")
     ap.add_argument("--file", choices=sorted(FILE_RECON),
                     help="a shipped file whose FILE_RECON joins the baseline")
+    ap.add_argument("--base", default=None,
+                    help="a variant applied to the baseline and under every --set (e.g. "
+                         "recon.coarse_sparse=0 to measure against a shipped file's setting off)")
     ap.add_argument("--spp", default="1,4,16,64")
     ap.add_argument("--split", default="test")
     ap.add_argument("--prefix", default="", help="only scenes whose names start with this")
     ap.add_argument("--limit", type=int, default=None, help="at most this many scenes")
     a = ap.parse_args(argv)
     variants = [parse_variant(v) for v in a.variants]
+    base = parse_variant(a.base) if a.base else []
     spps = [int(s) for s in a.spp.split(",")]
     ck = Checkpoint.read(a.checkpoint)
     model = ck.build()[0].eval()
@@ -171,7 +179,7 @@ def main(argv=None):
     moved = [False] * len(variants)
 
     def errors(layers, ref):
-        errs, (img0, *imgs) = image_errors(model, recon, layers, ref, variants)
+        errs, (img0, *imgs) = image_errors(model, recon, layers, ref, variants, base)
         for i, img in enumerate(imgs):
             moved[i] |= not np.array_equal(img, img0)
         return errs
@@ -179,7 +187,8 @@ def main(argv=None):
     recs = scenes(a.data, a.split, a.prefix, a.limit)
     ratios = ratios_over(a.data, recs, spps, len(variants), errors)
     print_ratios(f"{len(recs)} scenes of {a.data} ({a.split}{', ' + a.prefix if a.prefix else ''}); "
-                 "RelMSE with the variant / the baseline: geometric mean (worst image)",
+                 "RelMSE with the variant / the baseline"
+                 + (f" ({a.base} in both)" if a.base else "") + ": geometric mean (worst image)",
                  a.variants, ratios, spps)
     still = [v for v, m in zip(a.variants, moved) if not m]
     if still:

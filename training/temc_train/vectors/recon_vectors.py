@@ -23,7 +23,7 @@ SPECIALS = [math.nan, math.inf, -math.inf, 1e30, -1e30, 3e38, 88.0, -88.0, 2e4]
 
 def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, guide=False,
           fixed_range=False, exposure=1.0, upsample="nearest", coarse_clamp=False, range_noise=0.0,
-          coarse_gain=1.0, coarse_radius=0):
+          coarse_gain=1.0, coarse_radius=0, coarse_sparse=0.0):
     """Random inputs for one case: rgb in [0, 2), albedo with some zeros, logits ~ N(0, sd)."""
     rgb = np.round(2.0 * rng.random((3, h, w)) ** 2, 4)
     albedo = np.where(rng.random((3, h, w)) < 0.15, 0.0, np.round(rng.random((3, h, w)), 4))
@@ -35,6 +35,7 @@ def _case(name, rng, h, w, levels, kernel, demodulate=False, ldr=False, sd=2.0, 
                 eps=0.01, ldr=ldr, guide=guide, fixed_range=fixed_range, exposure=exposure,
                 upsample=upsample, range_opening="plain", coarse_clamp=coarse_clamp,
                 range_noise=range_noise, coarse_gain=coarse_gain, coarse_radius=coarse_radius,
+                coarse_sparse=coarse_sparse,
                 rgb=rgb,
                 albedo=albedo if demodulate else None, aux=None, filters=filters)
 
@@ -106,7 +107,7 @@ def cases():
     c["rgb"][:, 6:8, 6:8] = 40.0  # brighter, and float32 cancellation nears the tolerance
     out.append(c)
     return (out + aux_opening_cases(rng) + coarse_clamp_cases(rng) + chroma_cap_cases(rng)
-            + range_noise_cases(rng) + coarse_mean_cases(rng))
+            + range_noise_cases(rng) + coarse_mean_cases(rng) + coarse_sparse_cases(rng))
 
 
 def coarse_clamp_cases(rng):
@@ -175,7 +176,7 @@ def run(case, dtype):
                       case["demodulate"], case["eps"], case["ldr"], case["guide"],
                       case["fixed_range"], case["exposure"], case["upsample"],
                       case["range_opening"], aux, case["coarse_clamp"], case["range_noise"],
-                      case["coarse_gain"], case["coarse_radius"])
+                      case["coarse_gain"], case["coarse_radius"], case["coarse_sparse"])
     return out[0].double().numpy()
 
 
@@ -244,6 +245,25 @@ def coarse_mean_cases(rng):
               range_noise=6.0, coarse_gain=0.75, coarse_radius=2)
     c.update(range_opening="aux", aux=_aux(rng, 16, 16))
     c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.5, 0.0, 1.0)
+    out.append(c)
+    return out
+
+
+def coarse_sparse_cases(rng):
+    """The coarse clamp's rise where samples are sparse (`temc.coarse_sparse`): radiance with
+    most pixels exactly black, so the lit share ranges from 0 to 1 across the windows (the
+    rise from 1 to its bound), under nearest composition, and the shipped recipe with it
+    (radius 4 is wider than the 8x8 level 1, so the replicated edges count)."""
+    c = _case("coarse_sparse_16x16_L2_k3", rng, 16, 16, 2, 3, sd=1.0, coarse_clamp=True,
+              coarse_gain=0.5, coarse_radius=1, coarse_sparse=0.5)
+    c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.8, 0.0, 1.0)
+    c["rgb"][:, :4] = 0.0
+    out = [c]
+    c = _case("coarse_sparse_full_16x16_L3_k5", rng, 16, 16, 3, 5, sd=1.0, guide=True,
+              fixed_range=True, exposure=0.7, upsample="bilinear", coarse_clamp=True,
+              range_noise=6.0, coarse_gain=0.5, coarse_radius=4, coarse_sparse=0.5)
+    c.update(range_opening="aux", aux=_aux(rng, 16, 16))
+    c["rgb"] *= np.where(rng.random((1, 16, 16)) < 0.7, 0.0, 1.0)
     out.append(c)
     return out
 
