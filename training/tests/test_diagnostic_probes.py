@@ -1,7 +1,7 @@
 """The diagnostic probes: reference_noise.py on a data set whose renders are Gaussian draws
 of known variance (every noisy input must come out at ref_spp / spp + 1 reference
 variances), worst_pixels.py on an image with one kept dot, and constants.py's variants
-(set inside their block only, unknown names refused)."""
+(set inside their block only, unknown names refused, a --base under every one)."""
 
 import json
 
@@ -88,3 +88,23 @@ def refused(variant: str) -> bool:
     except SystemExit:
         return True
     return False
+
+
+def test_a_constants_base_applies_to_the_baseline_and_under_every_variant(monkeypatch):
+    from temc_train import reconstruct
+    from temc_train.probes import constants
+
+    seen = []
+
+    def denoise_variants(model, recons, noisy, aux, scale):
+        seen.append(recons[0]["coarse_sparse"])
+        return [np.zeros_like(noisy)]
+
+    monkeypatch.setattr(reconstruct, "denoise_variants", denoise_variants)
+    layers = {"color": np.ones((4, 4, 3), np.float32), "albedo": np.ones((4, 4, 3), np.float32),
+              "normal": np.ones((4, 4, 3), np.float32), "depth": np.ones((4, 4), np.float32)}
+    variants = [constants.parse_variant("recon.coarse_sparse=0.7"),
+                constants.parse_variant("recon.coarse_gain=2")]
+    constants.image_errors(None, {"coarse_sparse": 0.5}, layers, layers["color"], variants,
+                           constants.parse_variant("recon.coarse_sparse=0"))
+    assert seen == [0.0, 0.7, 0.0]  # the base under both; a variant's own setting wins
