@@ -18,7 +18,7 @@ use std::collections::TryReserveError;
 use ndarray::{Array2, Array3, ArrayView2, ArrayView3, Axis, Zip};
 
 /// Block side in pixels of the stage's first pass (docs/keep-mean-measured.md).
-pub const BLOCK: usize = 64;
+pub const BLOCK: usize = 128;
 /// The largest factor a block may be scaled by, up or down, in the first pass.
 pub const CLAMP: f64 = 4.0;
 /// The largest factor of the second pass, over the whole image: what the block clamp left

@@ -19,7 +19,7 @@ from .color import LINEAR_MAX
 # The core's stage (src/keep_mean.rs), measured in docs/keep-mean-measured.md: blocks of
 # BLOCK pixels with factors in [1 / CLAMP, CLAMP], then the whole image with factors in
 # [1 / GLOBAL_CLAMP, GLOBAL_CLAMP].
-BLOCK = 64
+BLOCK = 128
 CLAMP = 4.0
 GLOBAL_CLAMP = 16.0
 # A factor above SPREAD_ABOVE scales the pixel by SPREAD_ABOVE only and adds the rest times
@@ -150,4 +150,13 @@ def vector_cases():
         out.append(dict(name=name, w=w, h=h, block=block, clamp=clamp, ldr=ldr,
                         input=noisy.ravel().tolist(), output=den.ravel().tolist(),
                         want=[float(f"{v:.9g}") for v in want.ravel()]))
+    # The stage's own BLOCK: the left part darkened, the right brightened, so each block's
+    # factor differs and the result pins the block size the two sides use.
+    h, w = 24, 3 * BLOCK // 2
+    noisy = np.round(2.0 * rng.random((h, w, 3)) ** 2, 4)
+    den = np.round(noisy * np.where(np.arange(w) < w // 3, 0.7, 1.2)[None, :, None], 4)
+    want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)
+    out.append(dict(name=f"stage_{w}x{h}_halves", w=w, h=h, block="stage", clamp=0.0, ldr=False,
+                    input=noisy.ravel().tolist(), output=den.ravel().tolist(),
+                    want=[float(f"{v:.9g}") for v in want.ravel()]))
     return out
