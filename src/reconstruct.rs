@@ -1765,16 +1765,11 @@ mod tests {
         assert!((0..n).any(|i| ratio(&free, i) > 10.0), "the block it caps");
     }
 
-    /// The cap against a local mean (`temc.coarse_radius`): on a floor at 1-spp-like
-    /// sparsity (most pixels black in the fine level's own result, identity kernels), a
-    /// pixel's own value caps a black pixel at black, so the coarse level cannot fill it;
-    /// its 5x5 mean lets it. A lone firefly's dark surroundings outside its own 5x5 stay
-    /// capped at twice the dark level (their mean is dark too).
-    #[test]
-    fn the_coarse_cap_against_a_local_mean_fills_sparse_pixels() {
-        let (h, w, k, levels) = (16, 16, 3, 2);
-        let n = h * w;
-        let identity_fine = |l: usize| {
+    /// Two levels of 3x3 logits on `h` x `w`: identity kernels at the fine level, a box at
+    /// level 1, blends open (the coarse cap tests').
+    fn identity_over_box(h: usize, w: usize) -> Vec<Vec<f32>> {
+        let k = 3;
+        let level = |l: usize| {
             let nl = (h >> l) * (w >> l);
             let mut f = vec![0.0; channels(k, false) * nl];
             if l == 0 {
@@ -1785,7 +1780,19 @@ mod tests {
             f[2 * k * k * nl..].fill(LOGIT_MAX); // blends open
             f
         };
-        let f: Vec<Vec<f32>> = (0..levels).map(identity_fine).collect();
+        (0..2).map(level).collect()
+    }
+
+    /// The cap against a local mean (`temc.coarse_radius`): on a floor at 1-spp-like
+    /// sparsity (most pixels black in the fine level's own result, identity kernels), a
+    /// pixel's own value caps a black pixel at black, so the coarse level cannot fill it;
+    /// its 5x5 mean lets it. A lone firefly's dark surroundings outside its own 5x5 stay
+    /// capped at twice the dark level (their mean is dark too).
+    #[test]
+    fn the_coarse_cap_against_a_local_mean_fills_sparse_pixels() {
+        let (h, w, k, levels) = (16, 16, 3, 2);
+        let n = h * w;
+        let f = identity_over_box(h, w);
         // One lit pixel in every other 2x2 block: the blocks alternate 1 and 0 at level 1,
         // whose box kernel brings a black block up to about 0.5.
         let even = |v: usize| v.is_multiple_of(2);
@@ -1828,18 +1835,7 @@ mod tests {
     fn the_coarse_cap_rises_where_samples_are_sparse() {
         let (h, w, k, levels) = (16, 16, 3, 2);
         let n = h * w;
-        let identity_fine = |l: usize| {
-            let nl = (h >> l) * (w >> l);
-            let mut f = vec![0.0; channels(k, false) * nl];
-            if l == 0 {
-                f[..2 * k * k * nl].fill(-LOGIT_MAX);
-                f[4 * nl..5 * nl].fill(LOGIT_MAX); // luma centre tap
-                f[13 * nl..14 * nl].fill(LOGIT_MAX); // chroma centre tap
-            }
-            f[2 * k * k * nl..].fill(LOGIT_MAX); // blends open
-            f
-        };
-        let f: Vec<Vec<f32>> = (0..levels).map(identity_fine).collect();
+        let f = identity_over_box(h, w);
         let lit = |i: usize| (i % n / w).is_multiple_of(4) && (i % n % w).is_multiple_of(4);
         let sparse: Vec<f32> = (0..3 * n).map(|i| if lit(i) { 4.0 } else { 0.0 }).collect();
         let capped = |share| Params {
