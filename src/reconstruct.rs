@@ -965,14 +965,28 @@ struct Cap<'a> {
 /// max(1, share / max(d, [`COARSE_SPARSE_FLOOR`])), d the share of the (2 radius + 1)^2
 /// window's pixels (edges replicated) whose luminance in `x` [3, H, W] is above 0.
 fn sparse_rise(x: &[f32], h: usize, w: usize, radius: usize, share: f32) -> Vec<f32> {
-    let lit: Vec<f32> = luminance(x, h * w)
-        .iter()
-        .map(|&y| if y > 0.0 { 1.0 } else { 0.0 })
-        .collect();
+    let mut lit = luminance(x, h * w);
+    lit.iter_mut()
+        .for_each(|y| *y = if *y > 0.0 { 1.0 } else { 0.0 });
     let mut d = box_mean(&lit, h, w, 2 * radius + 1);
     d.iter_mut()
         .for_each(|v| *v = (share / v.max(COARSE_SPARSE_FLOOR)).max(1.0));
     d
+}
+
+/// What a coarse correction may add at each fine pixel ([`Cap`]): `gain` times the fine
+/// value clamped at 0, or its (2 radius + 1)^2 mean, times the rise where given (in that
+/// order, as PyTorch's `_cap`).
+fn cap_plane(fine: &[f32], h: usize, w: usize, cap: Cap<'_>) -> Vec<f32> {
+    let mut l: Vec<f32> = fine.iter().map(|v| v.max(0.0)).collect();
+    if cap.radius > 0 {
+        l = box_mean(&l, h, w, 2 * cap.radius + 1);
+    }
+    l.iter_mut().for_each(|v| *v *= cap.gain);
+    if let Some(rise) = cap.rise {
+        l.iter_mut().zip(rise).for_each(|(v, r)| *v *= r);
+    }
+    l
 }
 
 /// `sigmoid(blend) * U(coarse - D(fine))` per fine pixel, each capped by the coarse clamp
@@ -985,20 +999,8 @@ fn correction(
     w: usize,
     (up, clamp): (Upsample, Option<Cap<'_>>),
 ) -> Vec<f32> {
-    let means = match clamp {
-        Some(Cap { radius: r, .. }) if r > 0 => {
-            let lit: Vec<f32> = fine.iter().map(|v| v.max(0.0)).collect();
-            Some(box_mean(&lit, h, w, 2 * r + 1))
-        }
-        _ => None,
-    };
-    let cap = |i: usize, f: f32, c: f32| match clamp {
-        Some(Cap { gain, rise, .. }) => {
-            let base = gain * means.as_ref().map_or(f.max(0.0), |m| m[i]);
-            c.min(rise.map_or(base, |r| base * r[i]))
-        }
-        None => c,
-    };
+    let limit = clamp.map(|c| cap_plane(fine, h, w, c));
+    let cap = |i: usize, c: f32| limit.as_ref().map_or(c, |l| c.min(l[i]));
     let mut detail = Array2::from_shape_vec((h / 2, w / 2), downsample(fine, 1, h, w))
         .expect("one coarse plane");
     let coarse = ArrayView2::from_shape(detail.dim(), coarse).expect("a coarse plane");
@@ -1007,24 +1009,19 @@ fn correction(
         .for_each(|d, &c| *d = c - *d);
     let blend: Vec<f32> = blend.iter().map(|&b| sigmoid(b)).collect(); // one vectorised pass
     let blend = ArrayView2::from_shape((h, w), &blend).expect("a blend per fine pixel");
-    let fine = ArrayView2::from_shape((h, w), fine).expect("a fine plane");
     let mut out = Array2::<f32>::zeros((h, w));
     match up {
         Upsample::Nearest => Zip::indexed(&mut out)
-            .and(fine)
             .and(blend)
-            .for_each(|(y, x), o, &f, &b| *o = b * cap(y * w + x, f, detail[[y / 2, x / 2]])),
+            .for_each(|(y, x), o, &b| *o = b * cap(y * w + x, detail[[y / 2, x / 2]])),
         Upsample::Bilinear => {
             let (ys, xs) = (bilinear_taps(h), bilinear_taps(w));
-            Zip::indexed(&mut out)
-                .and(fine)
-                .and(blend)
-                .for_each(|(y, x), o, &f, &b| {
-                    let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
-                    // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
-                    let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
-                    *o = b * cap(y * w + x, f, 0.75 * row(y0) + 0.25 * row(y1));
-                })
+            Zip::indexed(&mut out).and(blend).for_each(|(y, x), o, &b| {
+                let ((y0, y1), (x0, x1)) = (ys[y], xs[x]);
+                // The same sum order as PyTorch's upsample_bilinear2d: rows, then columns.
+                let row = |r| 0.75 * detail[[r, x0]] + 0.25 * detail[[r, x1]];
+                *o = b * cap(y * w + x, 0.75 * row(y0) + 0.25 * row(y1));
+            })
         }
     }
     out.into_raw_vec_and_offset().0

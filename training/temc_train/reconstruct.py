@@ -167,9 +167,7 @@ def range_threshold(y, scale=1.0, noise=0.0):
     v = y.clamp(min=0.0) * scale
     med = _taps3(v)[:, 0].median(1, keepdim=True).values
     rel = (v - med).abs() / (med + RANGE_FLOOR)
-    r = RANGE_NOISE_BOX // 2
-    n = F.avg_pool2d(F.pad(rel, (r, r, r, r), mode="replicate"), RANGE_NOISE_BOX, stride=1)
-    return (noise * n).clamp(max=RANGE_TAU)
+    return (noise * _box_mean(rel, RANGE_NOISE_BOX // 2)).clamp(max=RANGE_TAU)
 
 
 def fixed_range_term(y, kernel, scale=1.0, opened_y=None, noise=0.0):
