@@ -157,3 +157,37 @@ def test_block_log_error_charges_darkening_and_brightening_by_the_same_factor_al
     assert (p.grad < 0).all()
     # Negative block means (a chroma overshoot) clamp to zero instead of giving NaN.
     assert math.isfinite(float(block_log_error(-target, target)))
+
+
+def test_worst_pixel_error_charges_a_kept_firefly_and_not_a_missed_one():
+    """One pixel of a 128x128 crop kept at 30x its reference, over residual noise: the mix
+    loss weighs it at its share of the crop; the worst-pixel term is the mean excess over the
+    worst 0.2 % of pixels and pushes that pixel down hardest. A firefly only the reference
+    has (a darker output) costs nothing."""
+    from temc_train.loss import WORST_SHARE, pq, training_loss, worst_pixel_error
+    target = image()[:1] * 0.5
+    base = noisy(target, 0.05)
+    kept = base.clone()
+    kept[0, :, 64, 64] = 3.0
+    assert round(WORST_SHARE * 128 * 128) == 33
+    assert float(worst_pixel_error(pq(target), pq(target))) == 0
+    worst = worst_pixel_error(pq(kept), pq(target))
+    plain = float(training_loss(kept, target))
+    assert float(training_loss(kept, target, worst_weight=0.5)) == pytest.approx(
+        plain + 0.5 * float(worst), rel=1e-5)
+    grads = []
+    for term in (lambda p: training_loss(p, target), lambda p: worst_pixel_error(pq(p), pq(target))):
+        p = kept.clone().requires_grad_()
+        term(p).backward()
+        grads.append(p.grad[0, :, 64, 64])
+        if len(grads) == 2:  # only the worst pixels get a gradient, all pushing down
+            assert (p.grad >= 0).all() and int((p.grad.sum(1) > 0).sum()) == 33
+    assert (grads[1] > 3 * grads[0].abs()).all()
+    # The reference's own firefly, which the output lacks, is not chased.
+    missed = target.clone()
+    missed[0, :, 10, 10] = 3.0
+    assert float(worst_pixel_error(pq(target), pq(missed))) == 0
+    # A crop smaller than 1 / share still charges its one worst pixel.
+    tiny = torch.zeros(1, 3, 4, 4)
+    tiny[0, :, 1, 2] = 0.5
+    assert float(worst_pixel_error(tiny, torch.zeros_like(tiny))) == pytest.approx(0.5)

@@ -295,6 +295,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
          + (f", plus {hp['dark_weight']:g} x the block log-ratio term (loss.block_log_error)"
             + (f" from step {ck['dark_from_step']:,}" if ck.get("dark_from_step") else "")
             if hp.get("dark_weight") else "")
+         + (f", plus {hp['worst_weight']:g} x the worst-pixel PQ error (loss.worst_pixel_error)"
+            + (f" from step {ck['worst_from_step']:,}" if ck.get("worst_from_step") else "")
+            if hp.get("worst_weight") else "")
          + (f"; its last cycle drew noisy inputs of at most {hp['max_input_spp']} spp "
             "(train --max-input-spp)" if hp.get("max_input_spp") else "")
          + (f"; its last cycle drew the noisy spp in the shares {hp['spp_weights']} "

@@ -397,7 +397,8 @@ def hparams(a, world: int) -> dict:
     """The recipe, as the model card reads it from the checkpoint."""
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
-            "mean_weight": a.mean_weight, "dark_weight": a.dark_weight, "target_spp": a.target_spp,
+            "mean_weight": a.mean_weight, "dark_weight": a.dark_weight,
+            "worst_weight": a.worst_weight, "target_spp": a.target_spp,
             "max_input_spp": a.max_input_spp, "spp_weights": a.spp_weights, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
@@ -478,6 +479,8 @@ def resume(a) -> Session:
             state["mean_from_step"] = state["step"]  # the card says when the term joined
         if a.dark_weight and not state.get("hparams", {}).get("dark_weight"):
             state["dark_from_step"] = state["step"]
+        if a.worst_weight and not state.get("hparams", {}).get("worst_weight"):
+            state["worst_from_step"] = state["step"]
         if group.leader:
             print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
                   f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
@@ -501,7 +504,7 @@ def step(s: Session) -> float:
     out = denoise(s.net, xs, s.rs, s.amp)
     loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
             else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight,
-                                  a.dark_weight))
+                                  a.dark_weight, a.worst_weight))
     s.opt.zero_grad(set_to_none=True)
     loss.backward()
     if finite_step(loss, s.model):
@@ -697,6 +700,9 @@ def arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dark-weight", type=float, default=0.0,
                     help="weight of the block log-ratio energy term (loss.block_log_error), "
                          "which charges darkened dark regions")
+    ap.add_argument("--worst-weight", type=float, default=0.0,
+                    help="weight of the worst-pixel PQ error (loss.worst_pixel_error: each "
+                         "crop's worst 0.2 %% of pixels), which charges kept fireflies")
     ap.add_argument("--max-input-spp", type=int, default=0,
                     help="--sampler device: draw noisy inputs only up to this spp (0: every "
                          "spp; validation still covers every spp). Measured 2026-12-05 (64 "
