@@ -243,7 +243,7 @@ def tiny_run(dataset, tmp_path_factory):
     train.main(["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--levels", "1",
                 "--guide", "1", "--run", str(runs / "tiny"), "--crop", "32", "--batch", "2",
                 "--lr", "3e-4", "--lr-half-life", "1.5", "--alpha", "0.5", "--rel-weight", "0.1",
-                "--val-minutes", "0", "--threads", "1", "--max-steps", "2"])
+                "--worst-weight", "0.5", "--val-minutes", "0", "--threads", "1", "--max-steps", "2"])
     return str(runs)
 
 
@@ -264,7 +264,8 @@ def test_ship_writes_the_card_from_the_checkpoint(tiny_run, reported, tmp_path, 
                "--measurements", str(reported.dir / "img" / "accuracy" / "measurements.csv")])
     ck = torch.load(os.path.join(tiny_run, "tiny", "checkpoint.pt"), weights_only=False)
     st, hp = ck["state"], ck["state"]["hparams"]
-    assert (hp["lr"], hp["batch"], hp["crop"], hp["alpha"], hp["rel_weight"]) == (3e-4, 2, 32, 0.5, 0.1)
+    assert (hp["lr"], hp["batch"], hp["crop"], hp["alpha"], hp["rel_weight"], hp["worst_weight"]) == \
+        (3e-4, 2, 32, 0.5, 0.1, 0.5)
     text = (onnx_dir / "temc2-fast.md").read_text()
     for want in (f"| steps | {st['step']:,} (batch 2, random 32x32 crops,",
                  f"| training time | {st['train_s']:.0f} CPU seconds in training steps, 1 thread(s) "
@@ -272,6 +273,7 @@ def test_ship_writes_the_card_from_the_checkpoint(tiny_run, reported, tmp_path, 
                  "| optimiser | Adam, learning rate 0.0003 (the paper's 1e-4 suits its far longer run), "
                  "halved every 1.5 h of training",
                  "the paper's L1 + MS-SSIM mix (alpha 0.5)", "plus 0.1 x relative L1",
+                 "plus 0.5 x the worst-pixel PQ error (loss.worst_pixel_error)",
                  f"Trained so far for {st['train_s'] / 60:.0f} CPU minutes on one core",
                  "| training run | training/runs/tiny |",
                  f"the run trained on {st['train_scenes']} training scenes |",

@@ -440,7 +440,7 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "session_scenes": st.get("session_scenes"),
             "hparams": ck.recipe(),
             "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
-            "dark_from_step": st.get("dark_from_step"),
+            "dark_from_step": st.get("dark_from_step"), "worst_from_step": st.get("worst_from_step"),
             # When each switchable reconstruction setting joined training (train.resume_model).
             **{f"{k}_from_step": st.get(f"{k}_from_step") for k in SWITCHABLE},
             "blend_reset": st.get("blend_reset"),
