@@ -32,8 +32,7 @@ CHECKPOINT_LIMIT = 20 * 2**20
 # The recipe of runs from before train.py stored it in the checkpoint (scripts/train-all).
 OLD_HPARAMS = {"lr": 5e-4, "batch": 4, "crop": 128, "threads": 1, "alpha": 0.84,
                "rel_weight": 0.0, "mean_weight": 0.0, "dark_weight": 0.0, "worst_weight": 0.0,
-               "target_spp": 0,
-               "loss": "mix"}
+               "target_spp": 0, "loss": "mix"}
 
 # Top-level keys with a field of their own; any other key of a file is kept in `summary`.
 _FIELDS = ("model", "opt", "state", "arch", "width", "recon", "dataset")

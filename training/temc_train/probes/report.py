@@ -162,7 +162,8 @@ def worst_mean_error(values, n, spp):
 def targets(denoisers, spps, values, geomean, mean) -> list:
     """The targets section: per temc model and spp, geometric-mean RelMSE and mean Delta E
     ITP as ratios to OIDN high's on the same images, against the bounds, and the worst
-    scene's |mean / reference mean - 1| (the noisy input's beside it: the render's own)."""
+    scene's |mean / reference mean - 1| (the noisy input's beside it: the render's own);
+    then each model's ratios over the bounds, how far it misses them."""
     ours = [n for n in denoisers if n.startswith(tuple(ARCH_NAMES.values()))]
     md = ["## Targets (issue 36)", "",
           "Geometric-mean RelMSE and mean Delta E ITP over the test scenes as ratios to OIDN "
