@@ -22,7 +22,7 @@ from .. import receptive
 from ..checkpoint import Checkpoint
 from ..onnx_export import INPUTS, example_inputs, export, metadata, output_names, recon_of, run_ort
 from ..models import ARCH_NAMES, count_params, label
-from .train import SWITCHABLE
+from .train import LATE_TERMS, SWITCHABLE
 
 # file (under onnx/) -> (run folder, quality mode or None for a baseline)
 SHIPPED = {
@@ -138,6 +138,10 @@ NOTES = {
 }
 # The cumulative training budgets of scripts/train-all (issue 15).
 BUDGET_HOURS = {"temc2-fast": 4}
+# How the card names each loss term a run may add late (train.LATE_TERMS).
+TERM_NAMES = {"mean": "the block-mean energy term (loss.block_mean_error)",
+              "dark": "the block log-ratio term (loss.block_log_error)",
+              "worst": "the worst-pixel PQ error (loss.worst_pixel_error)"}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")
@@ -297,15 +301,9 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
          f"| loss | the paper's L1 + MS-SSIM mix (alpha {hp['alpha']:g}), taken on PQ R'G'B' of the "
          "reconstructed linear output (loss.training_loss)"
          + (f", plus {hp['rel_weight']:g} x relative L1" if hp["rel_weight"] else "")
-         + (f", plus {hp['mean_weight']:g} x the block-mean energy term (loss.block_mean_error)"
-            + (f" from step {ck['mean_from_step']:,}" if ck.get("mean_from_step") else "")
-            if hp["mean_weight"] else "")
-         + (f", plus {hp['dark_weight']:g} x the block log-ratio term (loss.block_log_error)"
-            + (f" from step {ck['dark_from_step']:,}" if ck.get("dark_from_step") else "")
-            if hp.get("dark_weight") else "")
-         + (f", plus {hp['worst_weight']:g} x the worst-pixel PQ error (loss.worst_pixel_error)"
-            + (f" from step {ck['worst_from_step']:,}" if ck.get("worst_from_step") else "")
-            if hp.get("worst_weight") else "")
+         + "".join(f", plus {hp[f'{t}_weight']:g} x {TERM_NAMES[t]}"
+                   + (f" from step {ck[f'{t}_from_step']:,}" if ck.get(f"{t}_from_step") else "")
+                   for t in LATE_TERMS if hp.get(f"{t}_weight"))
          + (f"; its last cycle drew noisy inputs of at most {hp['max_input_spp']} spp "
             "(train --max-input-spp)" if hp.get("max_input_spp") else "")
          + (f"; its last cycle drew the noisy spp in the shares {hp['spp_weights']} "
@@ -439,8 +437,8 @@ def checkpoint_facts(ck, model, data_root) -> dict:
             "first_train_scenes": st.get("first_train_scenes"),
             "session_scenes": st.get("session_scenes"),
             "hparams": ck.recipe(),
-            "guide_from_step": st.get("guide_from_step"), "mean_from_step": st.get("mean_from_step"),
-            "dark_from_step": st.get("dark_from_step"), "worst_from_step": st.get("worst_from_step"),
+            "guide_from_step": st.get("guide_from_step"),
+            **{f"{t}_from_step": st.get(f"{t}_from_step") for t in LATE_TERMS},
             # When each switchable reconstruction setting joined training (train.resume_model).
             **{f"{k}_from_step": st.get(f"{k}_from_step") for k in SWITCHABLE},
             "blend_reset": st.get("blend_reset"),

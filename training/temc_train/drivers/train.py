@@ -393,6 +393,11 @@ def resume_model(a, model, ckpt_path, rs):
     return ck
 
 
+# Loss terms (`--TERM-weight`) a resumed run may add; the state keeps the step each joined
+# at as TERM_from_step.
+LATE_TERMS = ("mean", "dark", "worst")
+
+
 def hparams(a, world: int) -> dict:
     """The recipe, as the model card reads it from the checkpoint."""
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
@@ -475,12 +480,9 @@ def resume(a) -> Session:
         if ck.opt is not None:
             restore_optimizer_state(opt, ck.opt)  # moves the moments to the parameters' device
         state = ck.state  # Checkpoint.read gave an old run its gpu_seconds
-        if a.mean_weight and not state.get("hparams", {}).get("mean_weight"):
-            state["mean_from_step"] = state["step"]  # the card says when the term joined
-        if a.dark_weight and not state.get("hparams", {}).get("dark_weight"):
-            state["dark_from_step"] = state["step"]
-        if a.worst_weight and not state.get("hparams", {}).get("worst_weight"):
-            state["worst_from_step"] = state["step"]
+        for term in LATE_TERMS:  # the card says when the term joined
+            if getattr(a, f"{term}_weight") and not state.get("hparams", {}).get(f"{term}_weight"):
+                state[f"{term}_from_step"] = state["step"]
         if group.leader:
             print(f"resuming at step {state['step']}, {state['train_s']:.0f} CPU s + "
                   f"{state['gpu_seconds']:.0f} GPU s trained", flush=True)
