@@ -151,8 +151,13 @@ class Checkpoint:
         every = (self, *others)
         mean = {k: (sum(c.model[k].double() for c in every) / len(every)).to(v.dtype)
                 if torch.is_floating_point(v) else v for k, v in self.model.items()}
-        state = None if self.state is None else {**self.state, "opt_dropped": "weights averaged"}
-        return replace(self, model=mean, opt=None, state=state)
+        return replace(self, model=mean).without_moments("weights averaged")
+
+    def without_moments(self, why: str) -> "Checkpoint":
+        """This checkpoint without Adam's moments, the state saying why (`opt_dropped`): half
+        a fast checkpoint's bytes, and a resume starts the moments afresh."""
+        state = None if self.state is None else {**self.state, "opt_dropped": why}
+        return replace(self, opt=None, state=state)
 
     def with_branch_time(self, start: "Checkpoint", *branches: "Checkpoint") -> "Checkpoint":
         """This (averaged) checkpoint with the training time of every branch that `start`

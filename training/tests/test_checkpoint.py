@@ -198,6 +198,24 @@ def test_two_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
         Checkpoint.read(str(tmp_path / "a.pt")).averaged(other)
 
 
+def test_one_checkpoint_alone_is_written_without_its_moments(tmp_path):
+    """drivers.average with one checkpoint: its weights, steps and seconds exactly, no Adam
+    moments (a run's end shipped within the tree budget), and a smaller file."""
+    from temc_train.drivers import average
+    m = tiny()
+    state = {"step": 11, "train_s": 4.0, "gpu_seconds": 1.0}
+    Checkpoint(model=m.state_dict(), arch="temc2", width=0.0625, dataset="tiny",
+               opt=adam_state(m), state=state).write(str(tmp_path / "end.pt"))
+    average.main([str(tmp_path / "end.pt"), str(tmp_path / "slim.pt")])
+    got = Checkpoint.read(str(tmp_path / "slim.pt"))
+    assert got.opt is None and got.state["opt_dropped"] == "left out for the tree budget"
+    assert got.steps == 11 and got.state["train_s"] == 4.0 and got.state["gpu_seconds"] == 1.0
+    assert all(torch.equal(v, m.state_dict()[k]) for k, v in got.model.items())
+    assert os.path.getsize(tmp_path / "slim.pt") < os.path.getsize(tmp_path / "end.pt")
+    with pytest.raises(SystemExit):
+        average.main(["--branches", str(tmp_path / "end.pt"), str(tmp_path / "bad.pt")])
+
+
 def test_three_checkpoints_average_to_the_mean_of_their_weights(tmp_path):
     """drivers.average takes several checkpoints (snapshots along one cycle): each weight
     is the mean of all three, and the first one's steps stay."""
