@@ -56,14 +56,16 @@ def gpu_session_recipes():
     train_gpu = script("train-gpu")
     common = array(train_gpu, "common")
     net = re.search(r'^\s*one "\$out" (--arch \S+ --width \S+)', train_gpu, re.M).group(1).split()
-    l3_from = re.search(r"^l3_from=(\S+)", text, re.M).group(1)
+    # The first assignment of each `*_from` variable: the run a recipe continues.
+    starts = dict(re.findall(r"^(\w+_from)=(\S+)$", text, re.M)[::-1])
     out = []
     for line in text.splitlines():
         if "scripts/train-gpu" not in line or "exec" not in line:
             continue
         words = [w for w in shlex.split(line, comments=True) if w != ";;"]
         at = words.index("--from")
-        source = words[at + 1].replace("$l3_from", l3_from)
+        source = words[at + 1]
+        source = starts.get(source.lstrip("$"), source)
         flags = words[at + 2:]
         out.append((os.path.basename(source), [*common, *net, *flags]))
     return out
@@ -81,6 +83,7 @@ def test_every_script_is_read():
     assert ("train-all", "temc2-w0.0625-single") in runs
     assert ("gpu-session", "temc2-w0.125-l3") in runs
     assert ("gpu-session", "temc2-w0.0625-single") in runs
+    assert ("gpu-session", "temc2-w0.0625-l3") in runs
 
 
 @pytest.mark.parametrize("source,run,args", RECIPES, ids=[f"{s}:{r}" for s, r, _ in RECIPES])
