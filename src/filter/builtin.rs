@@ -53,9 +53,9 @@ mod tests {
     use super::*;
     use crate::engine::Model;
 
-    /// Each quality mode is a trained TEMC-2; fast is a narrower network than balanced,
-    /// balanced reconstructs at several pyramid levels (issue 36: several scales), and high
-    /// runs balanced's network over more flip passes.
+    /// Each quality mode is a trained TEMC-2 that reconstructs at several pyramid levels
+    /// (issue 36: several scales); fast is a narrower network than balanced, and high runs
+    /// balanced's network over more flip passes.
     #[test]
     fn quality_modes_are_trained_temc2_of_growing_cost() {
         let shape = |q| {
@@ -76,6 +76,7 @@ mod tests {
             shape(Quality::High),
         );
         assert!(fast.0 < balanced.0, "{fast:?} {balanced:?}");
+        assert!(fast.1 >= 3 && fast.2 == 1, "{fast:?}");
         assert!(balanced.1 >= 3 && balanced.2 == 1, "{balanced:?}");
         assert!(
             high.0 == balanced.0 && high.1 == balanced.1,

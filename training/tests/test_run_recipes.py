@@ -82,7 +82,6 @@ def test_every_script_is_read():
     assert ("train-all", "temc2-w0.125-energy") in runs
     assert ("train-all", "temc2-w0.0625-single") in runs
     assert ("gpu-session", "temc2-w0.125-l3") in runs
-    assert ("gpu-session", "temc2-w0.0625-single") in runs
     assert ("gpu-session", "temc2-w0.0625-l3") in runs
 
 
