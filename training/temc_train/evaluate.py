@@ -26,15 +26,9 @@ import torch.nn.functional as F
 
 from . import color
 from .data import auto_input_scale, read_exr
+from .loss import ictcp as ictcp_planes
 
 EPS = 0.01
-
-# BT.709 -> BT.2020 (BT.2087), and BT.2020 -> LMS of BT.2100 ICtCp.
-M709_2020 = np.array([[0.6274039, 0.3292830, 0.0433131],
-                      [0.0690973, 0.9195404, 0.0113623],
-                      [0.0163914, 0.0880133, 0.8955953]])
-M2020_LMS = np.array([[1688, 2146, 262], [683, 2951, 462], [99, 309, 3688]]) / 4096.0
-
 
 def relmse_terms(x, r):
     """RelMSE's terms, one per pixel and channel: relmse is their mean."""
@@ -101,13 +95,9 @@ def ssim_pq(x, r):
 
 
 def ictcp(rgb, scale):
-    lin = color.sanitize_rgb(rgb).astype(np.float64) * scale * color.NITS_PER_UNIT / color.PQ_MAX_NITS
-    lms = lin @ M709_2020.T @ M2020_LMS.T
-    p = color.pq_encode(np.clip(lms, 0, 1))
-    i = 0.5 * p[..., 0] + 0.5 * p[..., 1]
-    ct = (6610 * p[..., 0] - 13613 * p[..., 1] + 7003 * p[..., 2]) / 4096
-    cp = (17933 * p[..., 0] - 17390 * p[..., 1] - 543 * p[..., 2]) / 4096
-    return i, ct, cp
+    """I, Ct, Cp planes of an [H, W, 3] linear image at `scale` (loss.ictcp, in float64)."""
+    lin = torch.from_numpy(np.moveaxis(color.sanitize_rgb(rgb) * scale, -1, 0)[None])
+    return tuple(ictcp_planes(lin, floor=0.0)[0].numpy())
 
 
 def delta_e_itp(x, r):

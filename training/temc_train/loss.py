@@ -77,13 +77,50 @@ def mix_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA) -> 
     return (alpha * (1 - ms_ssim) + (1 - alpha) * l1).mean()
 
 
-def pq(rgb: torch.Tensor, nits_per_unit: float = color.NITS_PER_UNIT) -> torch.Tensor:
+PQ_FLOOR = 1e-10
+
+
+def pq(rgb: torch.Tensor, nits_per_unit: float = color.NITS_PER_UNIT,
+       floor: float = PQ_FLOOR) -> torch.Tensor:
     """Linear values (already times the exposure) -> PQ code values in [0, 1], as the core
     encodes them (contract §1 steps 3-5; values past 10000 cd/m2 clip). The floor keeps the
-    gradient of y^m1 finite at black."""
-    y = torch.clamp(rgb * (nits_per_unit / color.PQ_MAX_NITS), 1e-10, 1.0)
+    gradient of y^m1 finite at black; metrics, which need no gradient, pass 0."""
+    y = torch.clamp(rgb * (nits_per_unit / color.PQ_MAX_NITS), floor, 1.0)
     ym = y ** color.M1
     return ((color.C1 + color.C2 * ym) / (1.0 + color.C3 * ym)) ** color.M2
+
+
+# Linear BT.709 -> the LMS of BT.2100 ICtCp (BT.709 -> BT.2020 by BT.2087, then BT.2100's
+# LMS matrix), and PQ L'M'S' -> I, Ct, Cp.
+_RGB709_TO_LMS = (torch.tensor([[1688, 2146, 262], [683, 2951, 462], [99, 309, 3688]],
+                               dtype=torch.float64) / 4096.0
+                  @ torch.tensor([[0.6274039, 0.3292830, 0.0433131],
+                                  [0.0690973, 0.9195404, 0.0113623],
+                                  [0.0163914, 0.0880133, 0.8955953]], dtype=torch.float64))
+_LMS_TO_ICTCP = torch.tensor([[2048, 2048, 0], [6610, -13613, 7003], [17933, -17390, -543]],
+                             dtype=torch.float64) / 4096.0
+
+
+def ictcp(rgb: torch.Tensor, floor: float = PQ_FLOOR) -> torch.Tensor:
+    """Linear BT.709 values (times the exposure), channels on dim 1 -> ICtCp on dim 1, as
+    ITU-R BT.2100 defines it at 100 cd/m2 per unit: the one home of the colour space of
+    the Delta E ITP metric (evaluate.delta_e_itp) and of the chroma term."""
+    m = _RGB709_TO_LMS.to(rgb)
+    lms = torch.einsum("ij,nj...->ni...", m, rgb)
+    return torch.einsum("ij,nj...->ni...", _LMS_TO_ICTCP.to(rgb), pq(lms, floor=floor))
+
+
+CHROMA_EPS = 1e-10  # keeps the square root's gradient finite where the chroma matches
+
+
+def chroma_error(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """mean sqrt((dCt / 2)^2 + dCp^2) over pixels: Delta E ITP (BT.2124) without its
+    intensity axis and its factor 720, which the mix loss on R'G'B' already covers. The
+    worst-pixel term pulls a kept firefly down in every channel alike and costs colour
+    (1-3 % more Delta E ITP per cycle on the Cycles family, docs/reconstruction.md); this
+    term charges the hue and saturation it moves."""
+    d = ictcp(pred) - ictcp(target)
+    return ((0.5 * d[:, 1]) ** 2 + d[:, 2] ** 2 + CHROMA_EPS).sqrt().mean()
 
 
 REL_EPS = 0.01  # the RelMSE metric's epsilon (evaluate.EPS)
@@ -161,7 +198,8 @@ def worst_pixel_error(pred_pq: torch.Tensor, target_pq: torch.Tensor,
 
 def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA,
                   rel_weight: float = 0.0, mean_weight: float = 0.0,
-                  dark_weight: float = 0.0, worst_weight: float = 0.0) -> torch.Tensor:
+                  dark_weight: float = 0.0, worst_weight: float = 0.0,
+                  chroma_weight: float = 0.0) -> torch.Tensor:
     """What temc trains on: the paper's mix loss on PQ R'G'B' of the reconstructed linear
     output against the reference's (both [N,3,H,W], linear, times the exposure).
 
@@ -173,6 +211,8 @@ def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA
     loss = mix_loss(pp, pt, alpha)
     if worst_weight:
         loss = loss + worst_weight * worst_pixel_error(pp, pt)
+    if chroma_weight:
+        loss = loss + chroma_weight * chroma_error(pred, target)
     if rel_weight:
         loss = loss + rel_weight * relative_l1(pred, target)
     if mean_weight:

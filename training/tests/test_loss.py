@@ -1,4 +1,5 @@
 import math
+import numpy as np
 import pytest
 import torch
 
@@ -191,3 +192,30 @@ def test_worst_pixel_error_charges_a_kept_firefly_and_not_a_missed_one():
     tiny = torch.zeros(1, 3, 4, 4)
     tiny[0, :, 1, 2] = 0.5
     assert float(worst_pixel_error(tiny, torch.zeros_like(tiny))) == pytest.approx(0.5)
+
+
+def test_chroma_error_charges_hue_not_intensity():
+    """The chroma term is Delta E ITP's Ct and Cp axes, on evaluate.ictcp's colour space
+    (which colour-science checks): zero for the reference and for a grey image made brighter
+    (intensity only), BT.2124's chroma distance for a pixel moved in hue, and a finite
+    gradient where the colours match."""
+    from temc_train import evaluate as ev
+    from temc_train.loss import CHROMA_EPS, chroma_error, training_loss
+    target = image()[:1] * 0.5
+    floor = CHROMA_EPS ** 0.5
+    assert float(chroma_error(target, target)) == pytest.approx(floor)
+    grey = torch.full((1, 3, 8, 8), 0.2)
+    assert float(chroma_error(grey * 3, grey)) < 2 * floor
+    shifted = target.clone()
+    shifted[:, 0] *= 1.5  # redder
+    c = float(chroma_error(shifted, target))
+    _, t1, p1 = ev.ictcp(shifted[0].permute(1, 2, 0).numpy(), 1.0)
+    _, t2, p2 = ev.ictcp(target[0].permute(1, 2, 0).numpy(), 1.0)
+    want = np.mean(np.sqrt((0.5 * (t1 - t2)) ** 2 + (p1 - p2) ** 2))
+    assert want > 1e-3 and c == pytest.approx(want, rel=1e-3)
+    plain = float(training_loss(shifted, target))
+    assert float(training_loss(shifted, target, chroma_weight=2.0)) == pytest.approx(
+        plain + 2.0 * c, rel=1e-5)
+    p = target.clone().requires_grad_()
+    chroma_error(p, target).backward()
+    assert torch.isfinite(p.grad).all()

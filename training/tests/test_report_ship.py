@@ -243,7 +243,7 @@ def tiny_run(dataset, tmp_path_factory):
     train.main(["--data", dataset, "--arch", "temc2", "--width", "0.0625", "--levels", "1",
                 "--guide", "1", "--run", str(runs / "tiny"), "--crop", "32", "--batch", "2",
                 "--lr", "3e-4", "--lr-half-life", "1.5", "--alpha", "0.5", "--rel-weight", "0.1",
-                "--worst-weight", "0.5", "--val-minutes", "0", "--threads", "1", "--max-steps", "2"])
+                "--worst-weight", "0.5", "--chroma-weight", "0.25", "--val-minutes", "0", "--threads", "1", "--max-steps", "2"])
     return str(runs)
 
 
@@ -274,6 +274,7 @@ def test_ship_writes_the_card_from_the_checkpoint(tiny_run, reported, tmp_path, 
                  "halved every 1.5 h of training",
                  "the paper's L1 + MS-SSIM mix (alpha 0.5)", "plus 0.1 x relative L1",
                  "plus 0.5 x the worst-pixel PQ error (loss.worst_pixel_error)",
+                 "plus 0.25 x the chroma error (loss.chroma_error",
                  f"Trained so far for {st['train_s'] / 60:.0f} CPU minutes on one core",
                  "| training run | training/runs/tiny |",
                  f"the run trained on {st['train_scenes']} training scenes |",

@@ -157,7 +157,8 @@ NOTES = {
 # How the card names each loss term a run may add late (train.LATE_TERMS).
 TERM_NAMES = {"mean": "the block-mean energy term (loss.block_mean_error)",
               "dark": "the block log-ratio term (loss.block_log_error)",
-              "worst": "the worst-pixel PQ error (loss.worst_pixel_error)"}
+              "worst": "the worst-pixel PQ error (loss.worst_pixel_error)",
+              "chroma": "the chroma error (loss.chroma_error: Delta E ITP's Ct and Cp axes)"}
 GOLDEN_SIZE = (32, 64)
 MAX_BYTES = 20 << 20
 METRICS = ("RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref")

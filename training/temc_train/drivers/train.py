@@ -395,7 +395,7 @@ def resume_model(a, model, ckpt_path, rs):
 
 # Loss terms (`--TERM-weight`) a resumed run may add; the state keeps the step each joined
 # at as TERM_from_step.
-LATE_TERMS = ("mean", "dark", "worst")
+LATE_TERMS = ("mean", "dark", "worst", "chroma")
 
 
 def hparams(a, world: int) -> dict:
@@ -403,7 +403,8 @@ def hparams(a, world: int) -> dict:
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
             "mean_weight": a.mean_weight, "dark_weight": a.dark_weight,
-            "worst_weight": a.worst_weight, "target_spp": a.target_spp,
+            "worst_weight": a.worst_weight, "chroma_weight": a.chroma_weight,
+            "target_spp": a.target_spp,
             "max_input_spp": a.max_input_spp, "spp_weights": a.spp_weights, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
             "warmup": a.warmup, "cycle_hours": a.cycle_hours, "processes": world}
@@ -506,7 +507,7 @@ def step(s: Session) -> float:
     out = denoise(s.net, xs, s.rs, s.amp)
     loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
             else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight,
-                                  a.dark_weight, a.worst_weight))
+                                  a.dark_weight, a.worst_weight, a.chroma_weight))
     s.opt.zero_grad(set_to_none=True)
     loss.backward()
     if finite_step(loss, s.model):
@@ -705,6 +706,9 @@ def arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--worst-weight", type=float, default=0.0,
                     help="weight of the worst-pixel PQ error (loss.worst_pixel_error: each "
                          "crop's worst 0.2 %% of pixels), which charges kept fireflies")
+    ap.add_argument("--chroma-weight", type=float, default=0.0,
+                    help="weight of the chroma error (loss.chroma_error: Delta E ITP's Ct and Cp "
+                         "axes), which holds the colour the worst-pixel term moves")
     ap.add_argument("--max-input-spp", type=int, default=0,
                     help="--sampler device: draw noisy inputs only up to this spp (0: every "
                          "spp; validation still covers every spp). Measured 2026-12-05 (64 "
