@@ -50,11 +50,14 @@ const TILE_PLANES: f64 = 19.0 + reconstruct::SCRATCH_PLANES;
 /// flip in place).
 const PASS_PLANES: f64 = 3.0;
 
-/// tract's scratch beyond the live tensors the engine's estimate counts (packing panels,
-/// direct-convolution buffers, allocator slack): one 832x832 TEMC-2 tile peaked about 1.4
-/// times above its estimate (`MALLOC_MMAP_THRESHOLD_=1048576 /usr/bin/time -v` on
-/// `benches/tract_vs_ort.rs --size 832`); `scripts/memory-4k` checks the budget end to end.
-const TRACT_SCRATCH: f64 = 1.5;
+/// What tract holds per pixel, as a share of the live tensors the engine's estimate counts
+/// (the count takes every node's output as a buffer of its own). One thread with glibc's
+/// mmap threshold fixed, the slope of peak RSS over window area is 0.56-0.59 of the count
+/// for the three built-in TEMC-2 models (the calibration table of `scripts/memory-4k`), but
+/// two threads at 4K under `--max-memory-mb 512` peaked at 527 MiB with 0.8, 505 with 1.0
+/// and 486 with 1.2 (2026-12-07). The 1.5 used before was measured on a one-level model and
+/// cut 1080p into four tiles where two fit.
+const TRACT_SHARE: f64 = 1.2;
 
 /// Reads pixels of one input image.
 struct Source {
@@ -269,7 +272,7 @@ fn plan(
     let info = model.info();
     let (weights, per_px) = model.memory_estimate()?;
     let planes = TILE_PLANES + if job.passes > 1 { PASS_PLANES } else { 0.0 };
-    let per_px = per_px * TRACT_SCRATCH + planes * 4.0;
+    let per_px = per_px * TRACT_SHARE + planes * 4.0;
     let staging = (w * h * 12 + snapshot_bytes) as f64;
     let per_thread = (job.max_memory_bytes as f64 - staging - weights) / threads as f64;
     let overlap = info.tile_overlap.div_ceil(info.alignment) * info.alignment;
