@@ -45,7 +45,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         aux: &aux,
     };
     model.run(input(), h, w)?; // builds the plan
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
     for round in 1..=3 {
         let t = Instant::now();
         model.run(input(), h, w)?;
