@@ -6,28 +6,25 @@
 //!
 //! ```sh
 //! cargo run --release --features tract-threads --example tract_threads -- \
-//!     onnx/temc2-balanced.onnx 544 1056 2 726
+//!     onnx/temc2-balanced.onnx 544 1056 2
 //! ```
-//! (model, window height, window width, threads, and the planner's estimate in bytes per
-//! pixel of window from docs/memory.md's calibration table; pause other work while it
-//! runs). It ends with the tile plans of a 1920x1080 image under the default budget for
-//! 2 to 16 threads, one tile per thread as the filter runs them.
+//! (model, window height, window width, threads; pause other work while it runs). It ends
+//! with the tile plans of a 1920x1080 image under the default budget for 2 to 16 threads,
+//! one tile per thread as the filter runs them (`temc::filter::tile_plan`).
 
 use std::time::Instant;
 use temc::engine::{Model, NetInput};
-use temc::filter::DEFAULT_MAX_MEMORY_MB;
-use temc::tile::TilePlan;
+use temc::filter::{tile_plan, DEFAULT_MAX_MEMORY_MB};
 use tract_linalg::multithread::{multithread_tract_scope, Executor};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    if args.len() != 6 {
-        return Err("usage: tract_threads MODEL.onnx HEIGHT WIDTH THREADS BYTES_PER_PX".into());
+    if args.len() != 5 {
+        return Err("usage: tract_threads MODEL.onnx HEIGHT WIDTH THREADS".into());
     }
     let model = Model::from_path(&args[1])?;
     let (h, w, threads): (usize, usize, usize) =
         (args[2].parse()?, args[3].parse()?, args[4].parse()?);
-    let bytes_per_px: f64 = args[5].parse()?;
     let info = model.info();
     let hw = h * w;
     // Deterministic, image-like values: the timing does not depend on them.
@@ -70,13 +67,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             one / side_by_side
         );
     }
-    // The budget less the image-sized staging (12 bytes a pixel), shared by the concurrent
-    // tiles, as src/filter/execute.rs's plan stage shares it (weights left out: < 1 MB).
     let (iw, ih) = (1920, 1080);
-    let budget = (DEFAULT_MAX_MEMORY_MB << 20) as f64 - (iw * ih * 12) as f64;
     for t in [2usize, 4, 8, 16] {
-        let max_area = budget / t as f64 / bytes_per_px;
-        let p = TilePlan::for_budget(iw, ih, info.alignment, info.tile_overlap, max_area, t)?;
+        let (p, _) = tile_plan(&model, iw, ih, t, DEFAULT_MAX_MEMORY_MB)?;
         println!(
             "{iw}x{ih} on {t} threads: {} tiles of {}x{}, {:.2}x the image's pixels",
             p.tiles.len(),

@@ -319,13 +319,14 @@ fn absurd_sizes_are_refused_before_allocation() {
 /// peak fits it, down to the smallest tile the model allows. So every budget at or above
 /// that floor is kept, every budget below it runs the smallest tiles, and a bigger budget
 /// never means more tiles. The output is finite either way (an allocation that fails
-/// would be OUT_OF_MEMORY, tested below).
+/// would be OUT_OF_MEMORY, tested below), and `filter::tile_plan` gives the same plan.
 #[test]
 fn the_memory_budget_sets_the_tiles_and_bounds_the_estimated_peak() {
     let (w, h) = (640, 480);
     let color = smooth(w, h);
     let dev = device(2);
     let weights = model("ae");
+    let parsed = temc::engine::Model::from_bytes(&weights).unwrap();
     let mut runs = Vec::new();
     // Measured on this image: the floor (352-pixel windows, 300 tiles) estimates 209 MB,
     // 256 MB takes 80 tiles, 1024 MB one.
@@ -340,6 +341,16 @@ fn the_memory_budget_sets_the_tiles_and_bounds_the_estimated_peak() {
         let stats = f.execute().unwrap_or_else(|e| panic!("{mb} MB: {e}"));
         drop(f);
         assert_finite(&out, &format!("{mb} MB"));
+        if mb > 0 {
+            // The plan stage alone (`filter::tile_plan`) plans what the execution ran.
+            let threads = dev.effective_threads();
+            let (plan, peak) = temc::filter::tile_plan(&parsed, w, h, threads, mb).unwrap();
+            assert_eq!(
+                (plan.tiles.len(), plan.window, peak),
+                (stats.tiles, stats.window, stats.estimated_peak_bytes),
+                "{mb} MB"
+            );
+        }
         runs.push((mb, stats.tiles, stats.estimated_peak_bytes));
     }
     let (_, min_tiles, floor) = runs[0];

@@ -260,24 +260,27 @@ fn image_statistics(
     })
 }
 
-/// Stage 4: the tile plan from the memory budget (or the caller's tile size), and the
-/// estimated peak in bytes.
-fn plan(
-    job: &Job<'_>,
+/// Stage 4: the tile plan from the memory budget (or the caller's tile size, when not 0),
+/// and the estimated peak in bytes. `snapshot_bytes` is the private copy of inputs the run
+/// holds besides its staging; `passes` the network runs per tile.
+pub(super) fn tile_plan(
+    model: &Model,
     (w, h): (usize, usize),
     snapshot_bytes: usize,
     threads: usize,
+    max_memory_bytes: usize,
+    tile_size: usize,
+    passes: usize,
 ) -> Result<(TilePlan, f64), Error> {
-    let model = job.model.as_ref();
     let info = model.info();
     let (weights, per_px) = model.memory_estimate()?;
-    let planes = TILE_PLANES + if job.passes > 1 { PASS_PLANES } else { 0.0 };
+    let planes = TILE_PLANES + if passes > 1 { PASS_PLANES } else { 0.0 };
     let per_px = per_px * TRACT_SHARE + planes * 4.0;
     let staging = (w * h * 12 + snapshot_bytes) as f64;
-    let per_thread = (job.max_memory_bytes as f64 - staging - weights) / threads as f64;
+    let per_thread = (max_memory_bytes as f64 - staging - weights) / threads as f64;
     let overlap = info.tile_overlap.div_ceil(info.alignment) * info.alignment;
-    let plan = if job.tile_size > 0 {
-        let side = job.tile_size.div_ceil(info.alignment) * info.alignment + 2 * overlap;
+    let plan = if tile_size > 0 {
+        let side = tile_size.div_ceil(info.alignment) * info.alignment + 2 * overlap;
         TilePlan::new(w, h, info.alignment, info.tile_overlap, side)?
     } else {
         let max_area = per_thread.max(0.0) / per_px;
@@ -528,7 +531,17 @@ pub(super) fn run(
     let (stats, tile_plan) = pool.install(|| {
         rayon::join(
             || image_statistics(&job, &src, info, pool),
-            || plan(&job, (w, h), src.snapshot_bytes, threads),
+            || {
+                tile_plan(
+                    job.model,
+                    (w, h),
+                    src.snapshot_bytes,
+                    threads,
+                    job.max_memory_bytes,
+                    job.tile_size,
+                    job.passes,
+                )
+            },
         )
     });
     let (stats, (plan, estimated_peak)) = (stats?, tile_plan?);

@@ -144,6 +144,23 @@ impl MaxMemory {
     }
 }
 
+/// The tiles a filter running `model` plans for a `width x height` image under a
+/// `max_memory_mb` budget with `threads` workers, one tile each, and the estimated peak in
+/// bytes: the plan stage of an execution, without running it. `threads` is not capped at
+/// this machine's cores (a filter's is), so a benchmark can show a larger host's plan
+/// (examples/tract_threads.rs).
+pub fn tile_plan(
+    model: &Model,
+    width: usize,
+    height: usize,
+    threads: usize,
+    max_memory_mb: usize,
+) -> Result<(crate::tile::TilePlan, f64), Error> {
+    let budget = MaxMemory::Mb(max_memory_mb).bytes();
+    let passes = model.info().passes;
+    execute::tile_plan(model, (width, height), 0, threads.max(1), budget, 0, passes)
+}
+
 /// User weights: ONNX bytes (parsed at commit) or a model parsed already.
 #[derive(Clone)]
 enum Weights {
