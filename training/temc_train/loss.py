@@ -196,10 +196,21 @@ def worst_pixel_error(pred_pq: torch.Tensor, target_pq: torch.Tensor,
     return err.topk(k, dim=1).values.mean()
 
 
+WORST_AXES = ("rgb", "intensity")
+
+
+def worst_intensity_error(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """`worst_pixel_error` on ICtCp's intensity I (linear inputs): the worst pixels' excess
+    brightness as Delta E ITP's intensity axis reads it. The R'G'B' version pulls every
+    channel of a kept firefly down by the same PQ step, which moves its hue; this one
+    charges brightness alone and leaves the colour to the chroma term."""
+    return worst_pixel_error(ictcp(pred)[:, :1], ictcp(target)[:, :1])
+
+
 def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA,
                   rel_weight: float = 0.0, mean_weight: float = 0.0,
                   dark_weight: float = 0.0, worst_weight: float = 0.0,
-                  chroma_weight: float = 0.0) -> torch.Tensor:
+                  chroma_weight: float = 0.0, worst_axis: str = "rgb") -> torch.Tensor:
     """What temc trains on: the paper's mix loss on PQ R'G'B' of the reconstructed linear
     output against the reference's (both [N,3,H,W], linear, times the exposure).
 
@@ -210,7 +221,9 @@ def training_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = ALPHA
     pp, pt = pq(pred), pq(target)
     loss = mix_loss(pp, pt, alpha)
     if worst_weight:
-        loss = loss + worst_weight * worst_pixel_error(pp, pt)
+        worst = (worst_pixel_error(pp, pt) if worst_axis == "rgb"
+                 else worst_intensity_error(pred, target))
+        loss = loss + worst_weight * worst
     if chroma_weight:
         loss = loss + chroma_weight * chroma_error(pred, target)
     if rel_weight:

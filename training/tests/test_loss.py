@@ -194,6 +194,26 @@ def test_worst_pixel_error_charges_a_kept_firefly_and_not_a_missed_one():
     assert float(worst_pixel_error(tiny, torch.zeros_like(tiny))) == pytest.approx(0.5)
 
 
+def test_worst_intensity_error_charges_brightness_on_the_intensity_axis():
+    """`--worst-axis intensity`: the same mining on ICtCp's I. A kept firefly is charged, a
+    missed one is not, and training_loss adds it in place of the R'G'B' version."""
+    from temc_train.loss import ictcp, training_loss, worst_intensity_error, worst_pixel_error
+    target = image()[:1] * 0.5
+    kept = target.clone()
+    kept[0, :, 64, 64] = torch.tensor([3.0, 1.5, 0.5])
+    assert float(worst_intensity_error(target, target)) == 0
+    worst = worst_intensity_error(kept, target)
+    i_kept, i_ref = ictcp(kept)[0, 0, 64, 64], ictcp(target)[0, 0, 64, 64]
+    assert float(worst) == pytest.approx(float(i_kept - i_ref) / 33, rel=1e-4)
+    plain = float(training_loss(kept, target))
+    assert float(training_loss(kept, target, worst_weight=0.5, worst_axis="intensity")) == \
+        pytest.approx(plain + 0.5 * float(worst), rel=1e-5)
+    assert float(worst_pixel_error(ictcp(target)[:, :1], ictcp(kept)[:, :1])) == 0
+    p = kept.clone().requires_grad_()
+    worst_intensity_error(p, target).backward()
+    assert (p.grad[0, :, 64, 64] > 0).all() and float(p.grad.abs().sum()) > 0
+
+
 def test_chroma_error_charges_hue_not_intensity():
     """The chroma term is Delta E ITP's Ct and Cp axes, on evaluate.ictcp's colour space
     (which colour-science checks): zero for the reference and for a grey image made brighter

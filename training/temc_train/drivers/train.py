@@ -52,7 +52,7 @@ import torch
 
 from .. import data
 from ..checkpoint import CHECKPOINT_LIMIT, Checkpoint  # noqa: F401  (CHECKPOINT_LIMIT: re-exported)
-from ..loss import ALPHA, noise2noise_loss, training_loss
+from ..loss import ALPHA, WORST_AXES, noise2noise_loss, training_loss
 from ..models import ARCHS, KERNEL, LEVELS, SPLITS, FilterHeads, build, checkpoint_recon, count_params  # noqa: F401
 from ..reconstruct import RANGE_OPENINGS, UPSAMPLES, options as recon_options, reconstruct
 from . import shard
@@ -403,7 +403,8 @@ def hparams(a, world: int) -> dict:
     return {"lr": a.lr, "lr_half_life": a.lr_half_life, "batch": a.batch, "crop": a.crop,
             "threads": a.threads, "alpha": a.alpha, "rel_weight": a.rel_weight,
             "mean_weight": a.mean_weight, "dark_weight": a.dark_weight,
-            "worst_weight": a.worst_weight, "chroma_weight": a.chroma_weight,
+            "worst_weight": a.worst_weight, "worst_axis": a.worst_axis,
+            "chroma_weight": a.chroma_weight,
             "target_spp": a.target_spp,
             "max_input_spp": a.max_input_spp, "spp_weights": a.spp_weights, "loss": a.loss,
             "sampler": a.sampler, "amp": a.amp, "schedule": a.schedule, "lr_batch": a.lr_batch,
@@ -507,7 +508,8 @@ def step(s: Session) -> float:
     out = denoise(s.net, xs, s.rs, s.amp)
     loss = (noise2noise_loss(out, xs[5]) if a.loss == "relmse"
             else training_loss(out, xs[5], a.alpha, a.rel_weight, a.mean_weight,
-                                  a.dark_weight, a.worst_weight, a.chroma_weight))
+                                  a.dark_weight, a.worst_weight, a.chroma_weight,
+                                  a.worst_axis))
     s.opt.zero_grad(set_to_none=True)
     loss.backward()
     if finite_step(loss, s.model):
@@ -706,6 +708,9 @@ def arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--worst-weight", type=float, default=0.0,
                     help="weight of the worst-pixel PQ error (loss.worst_pixel_error: each "
                          "crop's worst 0.2 %% of pixels), which charges kept fireflies")
+    ap.add_argument("--worst-axis", choices=WORST_AXES, default="rgb",
+                    help="what the worst-pixel term reads: PQ R'G'B' averaged over channels, "
+                         "or ICtCp's intensity (loss.worst_intensity_error), which leaves hue alone")
     ap.add_argument("--chroma-weight", type=float, default=0.0,
                     help="weight of the chroma error (loss.chroma_error: Delta E ITP's Ct and Cp "
                          "axes), which holds the colour the worst-pixel term moves")
