@@ -80,36 +80,46 @@ def window_mean(x: np.ndarray, r: int) -> np.ndarray:
 
 
 def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
-          radius: int = SPREAD_RADIUS) -> np.ndarray:
+          radius: int = SPREAD_RADIUS, cap=None) -> np.ndarray:
     """`out` times the factors `f`, where a factor's part above `above` multiplies the
-    output's window mean instead of the pixel (float64)."""
+    output's window mean instead of the pixel (float64). `cap` (the probe's variants, not
+    the core's stage): (k, r) bounds that mean at k times the output's (2r + 1)^2 mean
+    around the pixel (r = 0: the pixel itself), so a dimmed lamp's bright window cannot
+    light the black beside it (docs/keep-mean.md, "A spread that cannot leave a lamp")."""
     o = out.astype(np.float64)
     if not (f > above).any():
         return o * f
     scale = np.minimum(f, above)
-    return o * scale + (f - scale) * window_mean(o, radius)
+    mean = window_mean(o, radius)
+    if cap is not None:
+        k, r = cap
+        mean = np.minimum(mean, k * (window_mean(o, r) if r else o))
+    return o * scale + (f - scale) * mean
 
 
 def keep_mean(out: np.ndarray, noisy: np.ndarray, block: int = BLOCK, clamp: float = CLAMP,
-              ldr: bool = False, above: float = SPREAD_ABOVE) -> np.ndarray:
+              ldr: bool = False, above: float = SPREAD_ABOVE, cap=None) -> np.ndarray:
     """`out` [H, W, 3] rescaled so each block's mean follows `noisy` (the sanitised input the
     reconstruction filtered); block 0 means one block for the whole image; factors above
     `above` spread (`apply`; inf: pure scaling). Result finite, in [0, LINEAR_MAX] (LDR:
     [0, 1])."""
-    return np.clip(apply(out, factors(out, noisy, block, clamp), above), 0.0,
+    return np.clip(apply(out, factors(out, noisy, block, clamp), above, cap=cap), 0.0,
                    1.0 if ldr else LINEAR_MAX).astype(np.float32)
 
 
 def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False,
-          above: float = SPREAD_ABOVE) -> np.ndarray:
+          above: float = SPREAD_ABOVE, cap=None) -> np.ndarray:
     """The core's keep-mean stage: keep_mean over BLOCK-pixel blocks (local energy), then
     over the whole image (what the block clamp left), then over the whole image once more:
     window means are not sum-preserving near the image's edges, so after a spread the mean
     is a little off, and this pass (a factor near 1: pure scaling) makes it exact. `above`
-    other than SPREAD_ABOVE is for the probe's variants (inf: scaling only)."""
-    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above)
-    whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above)
-    return keep_mean(whole, noisy, 0, GLOBAL_CLAMP, ldr, above)
+    other than SPREAD_ABOVE is for the probe's variants (inf: scaling only), as is `cap`
+    (`apply`): with a cap the last pass only scales, so what the cap held back still comes
+    back and the mean stays exact."""
+    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above, cap)
+    whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above, cap)
+    last = above if cap is None else float("inf")
+    return keep_mean(whole, noisy, 0, GLOBAL_CLAMP, ldr, last, cap)
 
 
 def factors(out: np.ndarray, noisy: np.ndarray, block: int, clamp: float) -> np.ndarray:

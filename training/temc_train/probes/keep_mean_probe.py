@@ -56,6 +56,12 @@ VARIANTS = {
     "the same, factors above 2 spread": lambda out, noisy: stage(out, noisy, above=2.0),
     "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
+    "the core's stage, its spread capped at the pixel, last pass scaling":
+        lambda out, noisy: stage(out, noisy, cap=(1.0, 0)),
+    "the core's stage, its spread capped at 4x the pixel, last pass scaling":
+        lambda out, noisy: stage(out, noisy, cap=(4.0, 0)),
+    "the core's stage, its spread capped at 4x the 5x5 mean, last pass scaling":
+        lambda out, noisy: stage(out, noisy, cap=(4.0, 2)),
 }
 
 
@@ -75,9 +81,16 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--splits", default="val,test", help="comma-separated splits to denoise")
     ap.add_argument("--spp", default="", help="comma-separated spp to probe (default: all)")
+    ap.add_argument("--scenes", default="", help="comma-separated scene-name prefixes to probe "
+                    "(default: every scene of the splits)")
+    ap.add_argument("--variants", default="", help="probe only the variants whose names hold "
+                    "this text (the noisy input's row stays)")
     a = ap.parse_args(argv)
     torch.set_num_threads(a.threads)
-    scenes = [sc for split in a.splits.split(",") for sc in data.load_split(a.data, split)]
+    prefixes = tuple(p for p in a.scenes.split(",") if p)
+    scenes = [sc for split in a.splits.split(",") for sc in data.load_split(a.data, split)
+              if not prefixes or sc.name.startswith(prefixes)]
+    variants = {k: v for k, v in VARIANTS.items() if a.variants in k}
     only = {int(x) for x in a.spp.split(",") if x}
     model, *_ = load_checkpoint(a.checkpoint)
     recon = recon_of(model)
@@ -90,7 +103,7 @@ def main(argv=None):
                 continue
             noisy = color.sanitize_rgb(sc.a["color"][s])
             out = denoise(model, recon, sc, s, keep=False)
-            for name, f in [("noisy input", lambda o, n: n)] + list(VARIANTS.items()):
+            for name, f in [("noisy input", lambda o, n: n)] + list(variants.items()):
                 x = f(out, noisy)
                 m = evaluate.mean_ratio(x, ref)
                 res.setdefault((name, spp), []).append((evaluate.relmse(x, ref), evaluate.delta_e_itp(x, ref), m))
@@ -102,7 +115,8 @@ def main(argv=None):
         "",
         "Regenerate: `cd training && python -m temc_train.probes.keep_mean_probe --data ../data/spectral-v2 "
         f"--checkpoint {a.checkpoint} --splits {a.splits}" + (f" --spp {a.spp}" if a.spp else "")
-        + " --out ../docs/keep-mean-measured.md`.",
+        + (f" --scenes {a.scenes}" if a.scenes else "")
+        + (f" --variants '{a.variants}'" if a.variants else "") + f" --out {a.out}`.",
         f"{len(scenes)} whole images of the {a.splits} split(s), full aux, denoised once by the",
         "checkpoint above through reconstruct.py; each variant then rescales that output. Per spp:",
         "geometric-mean RelMSE | mean Delta E ITP | worst |mean / reference mean - 1| (scene) |",
@@ -115,7 +129,7 @@ def main(argv=None):
     for spp in spps:
         lines += [f"## {spp} spp", "", "| variant | RelMSE | dE ITP | worst mean | within 1 % | worst scene |",
                   "| --- | ---: | ---: | ---: | ---: | --- |"]
-        for name in ["noisy input"] + list(VARIANTS):
+        for name in ["noisy input"] + list(variants):
             lines.append(f"| {name} | {row(res[(name, spp)])} | {worst[(name, spp)][1]} |")
         lines.append("")
     with open(a.out, "w") as f:
