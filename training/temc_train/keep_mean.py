@@ -84,7 +84,8 @@ def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
     """`out` times the factors `f`, where a factor's part above `above` multiplies the
     output's window mean instead of the pixel (float64). `cap` (the probe's variants, not
     the core's stage): (k, r) bounds that mean at k times the output's (2r + 1)^2 mean
-    around the pixel (r = 0: the pixel itself), so a dimmed lamp's bright window cannot
+    around the pixel (r = 0: the pixel itself; r < 0: takes the window mean of the output
+    clipped at k times that mean instead), so a dimmed lamp's bright window cannot
     light the black beside it (docs/keep-mean.md, "A spread that cannot leave a lamp")."""
     o = out.astype(np.float64)
     if not (f > above).any():
@@ -93,7 +94,11 @@ def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
     mean = window_mean(o, radius)
     if cap is not None:
         k, r = cap
-        mean = np.minimum(mean, k * (window_mean(o, r) if r else o))
+        # r < 0: the window mean of the output clipped at k times that mean (one outlier
+        # pass), so a lamp's light stays out of its neighbours' share.
+        bound = (window_mean(o, r) if r > 0 else o) if r >= 0 else None
+        mean = (np.minimum(mean, k * bound) if bound is not None
+                else window_mean(np.minimum(o, k * mean), radius))
     return o * scale + (f - scale) * mean
 
 

@@ -105,3 +105,8 @@ def test_a_capped_spread_keeps_a_dimmed_lamp_out_of_the_black_beside_it():
     assert capped[:40][noisy[:40, :, 0] == 0].max() == 0.0
     assert abs(capped[30, 30, 0] / 1000.0 - 1) < 0.05
     assert abs(capped.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5
+    # The window mean of the output clipped at 4x that mean: most of the leak goes.
+    clipped = km.stage(out, noisy, cap=(4.0, -1))
+    black = noisy[:40, :, 0] == 0
+    assert clipped[:40][black].max() < 0.1 * spread[:40][black].max()
+    assert abs(clipped.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5

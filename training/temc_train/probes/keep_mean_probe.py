@@ -62,6 +62,8 @@ VARIANTS = {
         lambda out, noisy: stage(out, noisy, cap=(4.0, 0)),
     "the core's stage, its spread capped at 4x the 5x5 mean, last pass scaling":
         lambda out, noisy: stage(out, noisy, cap=(4.0, 2)),
+    "the core's stage, its window mean over the output clipped at 4x that mean, last pass scaling":
+        lambda out, noisy: stage(out, noisy, cap=(4.0, -1)),
 }
 
 
