@@ -94,11 +94,10 @@ def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
     mean = window_mean(o, radius)
     if cap is not None:
         k, r = cap
-        # r < 0: the window mean of the output clipped at k times that mean (one outlier
-        # pass), so a lamp's light stays out of its neighbours' share.
-        bound = (window_mean(o, r) if r > 0 else o) if r >= 0 else None
-        mean = (np.minimum(mean, k * bound) if bound is not None
-                else window_mean(np.minimum(o, k * mean), radius))
+        if r < 0:  # one outlier pass: a lamp's light stays out of its neighbours' share
+            mean = window_mean(np.minimum(o, k * mean), radius)
+        else:
+            mean = np.minimum(mean, k * (window_mean(o, r) if r else o))
     return o * scale + (f - scale) * mean
 
 
