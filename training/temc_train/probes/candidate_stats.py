@@ -44,31 +44,35 @@ def labels(by: dict) -> tuple:
 
 
 def paired(cand: dict, ship: dict) -> tuple:
-    """(geometric-mean ratio, its standard error as a factor - 1, worst ratio, worst scene)
-    over the scenes both hold; the error is 0 for one scene."""
+    """(scenes, geometric-mean ratio, its standard error as a factor - 1, worst ratio, worst
+    scene) over the scenes both hold; the error is 0 for one scene."""
     scenes = sorted(set(cand) & set(ship))
     logs = [math.log(cand[s] / ship[s]) for s in scenes]
     se = statistics.stdev(logs) / math.sqrt(len(logs)) if len(logs) > 1 else 0.0
-    worst = max(range(len(logs)), key=lambda i: logs[i])
-    return math.exp(statistics.fmean(logs)), math.expm1(se), math.exp(logs[worst]), scenes[worst]
+    worst, scene = max(zip(logs, scenes))
+    return len(scenes), math.exp(statistics.fmean(logs)), math.expm1(se), math.exp(worst), scene
 
 
 def rows(report_dirs: list) -> list:
-    """[(family, spp, scenes, ratio, se, worst ratio, worst scene)] over the reports."""
+    """[(family, spp, scenes, ratio, se, worst ratio, worst scene)] over the reports; each
+    report kind (img-cycles, img-test) is read from the first folder that has it, once."""
+    tables = {}
+    for sub in {sub for sub, _ in FAMILIES.values()}:
+        paths = [os.path.join(d, sub, "measurements.csv") for d in report_dirs]
+        found = next((p for p in paths if os.path.exists(p)), None)
+        if found:
+            by = read(found)
+            tables[sub] = (by, *labels(by))
     out = []
     for family, (sub, prefix) in FAMILIES.items():
-        for d in report_dirs:
-            path = os.path.join(d, sub, "measurements.csv")
-            if not os.path.exists(path):
-                continue
-            by = read(path)
-            cand, ship = labels(by)
-            for spp in SPPS:
-                c = {s: v for s, v in by.get((spp, cand), {}).items() if s.startswith(prefix)}
-                s = {k: v for k, v in by.get((spp, ship), {}).items() if k.startswith(prefix)}
-                if c and s:
-                    out.append((family, spp, len(set(c) & set(s)), *paired(c, s)))
-            break
+        if sub not in tables:
+            continue
+        by, cand, ship = tables[sub]
+        for spp in SPPS:
+            c = {k: v for k, v in by.get((spp, cand), {}).items() if k.startswith(prefix)}
+            s = {k: v for k, v in by.get((spp, ship), {}).items() if k.startswith(prefix)}
+            if c and s:
+                out.append((family, spp, *paired(c, s)))
     return out
 
 
