@@ -9,7 +9,9 @@
 //! runs on the whole image, so it is the same whatever the tiling or thread count. A
 //! factor's part above [`SPREAD_ABOVE`] multiplies the output's local mean instead of the
 //! pixel, so a block whose filters dropped most of its energy gets it back as smooth light,
-//! not as its few remnants multiplied tenfold.
+//! not as its few remnants multiplied tenfold; that mean is over the output clipped at
+//! [`SPREAD_CLIP`] times its own window mean, so a lamp's light stays out of the black
+//! beside it.
 //! `training/temc_train/keep_mean.py` is the same function; `tests/data/keep_mean_vectors.json`
 //! pins the two together.
 
@@ -29,17 +31,20 @@ pub const GLOBAL_CLAMP: f64 = 16.0;
 pub const SPREAD_ABOVE: f64 = 1.25;
 /// Radius of that window: (2 r + 1)^2 pixels, the part inside the image.
 pub const SPREAD_RADIUS: usize = 16;
+/// The window mean a spread multiplies is over the output clipped at this many times its
+/// own window mean, so a lamp's light stays out of its dark neighbours' share.
+pub const SPREAD_CLIP: f64 = 4.0;
 
 /// The core's keep-mean stage: [`keep_mean`] over [`BLOCK`]-pixel blocks (energy stays
 /// near where it was rendered), then over the whole image (its mean follows the input's
 /// within [`GLOBAL_CLAMP`]), then over the whole image once more: window means do not keep
-/// sums near the image's edges, so a spread leaves the mean a little off, and this pass (a
-/// factor near 1: pure scaling) makes it exact. `input` is the sanitised noisy radiance,
+/// sums near the image's edges and the spread's clip holds back a lamp's excess, so a
+/// spread leaves the mean off, and this pass (scaling only) makes it exact. `input` is the sanitised noisy radiance,
 /// read once: the whole image's sum is the sum of its block sums. `max` is the output
 /// ceiling.
 ///
 /// # Errors
-/// When the spread's one image-sized buffer cannot be allocated.
+/// When the spread's two image-sized buffers cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long or `w` or `h` is 0.
@@ -51,16 +56,30 @@ pub fn stage(
 ) -> Result<(), TryReserveError> {
     check(out, (w, h));
     let blocks = block_sums(input, (w, h), BLOCK);
-    rescale(out, (w, h), &blocks, BLOCK, CLAMP, max)?;
+    rescale(out, (w, h), &blocks, BLOCK, CLAMP, max, SPREAD_ABOVE)?;
     let whole = blocks
         .sum_axis(Axis(0))
         .sum_axis(Axis(0))
         .into_shape_with_order((1, 1, 3))
         .expect("three channels");
-    for _ in 0..2 {
-        rescale(out, (w, h), &whole, w.max(h), GLOBAL_CLAMP, max)?;
-    }
-    Ok(())
+    rescale(
+        out,
+        (w, h),
+        &whole,
+        w.max(h),
+        GLOBAL_CLAMP,
+        max,
+        SPREAD_ABOVE,
+    )?;
+    rescale(
+        out,
+        (w, h),
+        &whole,
+        w.max(h),
+        GLOBAL_CLAMP,
+        max,
+        f64::INFINITY,
+    )
 }
 
 /// Checks that `out` holds `w` x `h` interleaved RGB pixels, at least one.
@@ -116,7 +135,7 @@ fn axis(n: usize, g: usize, block: usize) -> Vec<(usize, usize, f64)> {
 /// black); its part above [`SPREAD_ABOVE`] spreads; the result is clamped to [0, `max`].
 ///
 /// # Errors
-/// When the spread's one image-sized buffer cannot be allocated.
+/// When the spread's two image-sized buffers cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long, `w` or `h` is 0, or `clamp` < 1.
@@ -133,10 +152,11 @@ pub fn keep_mean(
     // neighbours, so leaving it out of the input's sum would darken its block and the image.
     check(out, (w, h));
     let sums = block_sums(input, (w, h), block);
-    rescale(out, (w, h), &sums, block, clamp, max)
+    rescale(out, (w, h), &sums, block, clamp, max, SPREAD_ABOVE)
 }
 
-/// [`keep_mean`] from the input's block sums (of [`block_sums`] at `block`).
+/// [`keep_mean`] from the input's block sums (of [`block_sums`] at `block`); factors above
+/// `above` spread (infinity: pure scaling).
 fn rescale(
     out: &mut [f32],
     (w, h): (usize, usize),
@@ -144,6 +164,7 @@ fn rescale(
     block: usize,
     clamp: f64,
     max: f32,
+    above: f64,
 ) -> Result<(), TryReserveError> {
     assert!(clamp >= 1.0);
     let pixels = out.chunks_exact(3).map(|p| [p[0], p[1], p[2]]);
@@ -152,8 +173,8 @@ fn rescale(
         .and(&output_sums)
         .map_collect(|&i, &o| (if o > 0.0 { i / o } else { 1.0 }).clamp(1.0 / clamp, clamp));
     let mut factors = Factors::new(&ratio, (w, h), block);
-    // A pixel's factor is a convex mix of block factors: none above SPREAD_ABOVE, no spread.
-    if !ratio.iter().any(|&r| r > SPREAD_ABOVE) {
+    // A pixel's factor is a convex mix of block factors: none above `above`, no spread.
+    if !ratio.iter().any(|&r| r > above) {
         for (y, row) in out.chunks_exact_mut(3 * w).enumerate() {
             for (v, f) in row.iter_mut().zip(factors.row(y)) {
                 *v = ((*v as f64 * f) as f32).clamp(0.0, max);
@@ -161,17 +182,41 @@ fn rescale(
         }
         return Ok(());
     }
-    let rows = row_means(out, (w, h), SPREAD_RADIUS)?;
+    let clipped = clipped_to_window_means(out, (w, h))?;
+    let rows = row_means(&clipped, (w, h), SPREAD_RADIUS)?;
+    drop(clipped);
     window_means(rows.view(), SPREAD_RADIUS, |y, mean| {
         let mean = mean.as_slice().expect("a fresh array is contiguous");
         let row = &mut out[y * 3 * w..][..3 * w];
         for ((v, f), m) in row.iter_mut().zip(factors.row(y)).zip(mean) {
-            let scale = f.min(SPREAD_ABOVE);
+            let scale = f.min(above);
             let o = *v as f64 * scale + (f - scale) * m;
             *v = (o as f32).clamp(0.0, max);
         }
     });
     Ok(())
+}
+
+/// `img` with every value clipped at [`SPREAD_CLIP`] times its window mean (radius
+/// [`SPREAD_RADIUS`]): the spread's source, so that a lamp among dark pixels lights its
+/// window's share no more than a few ordinary pixels would (docs/keep-mean.md, "Spread").
+fn clipped_to_window_means(
+    img: &[f32],
+    (w, h): (usize, usize),
+) -> Result<Vec<f32>, TryReserveError> {
+    let rows = row_means(img, (w, h), SPREAD_RADIUS)?;
+    let mut clipped = Vec::new();
+    clipped.try_reserve_exact(img.len())?;
+    window_means(rows.view(), SPREAD_RADIUS, |y, mean| {
+        let row = &img[y * 3 * w..][..3 * w];
+        let mean = mean.as_slice().expect("a fresh array is contiguous");
+        clipped.extend(
+            row.iter()
+                .zip(mean)
+                .map(|(&v, &m)| (v as f64).min(SPREAD_CLIP * m) as f32),
+        );
+    });
+    Ok(clipped)
 }
 
 /// The factor at each pixel and channel: bilinear between the block centres, horizontally
@@ -370,6 +415,33 @@ mod tests {
         assert!(dark
             .flat_map(|(_, p)| p)
             .all(|&v| (0.095..0.105).contains(&v)));
+    }
+
+    /// A 2x2 lamp the filters dimmed to 60 % on black, over a dim floor: the spread's
+    /// window mean beside it would be the lamp's light (about 1.8 on the black sky before
+    /// [`SPREAD_CLIP`]); the black stays nearly black, the lamp gets its light back and the
+    /// image's mean is exact.
+    #[test]
+    fn a_dimmed_lamp_does_not_light_the_black_beside_it() {
+        let (w, h) = (64, 64);
+        let lamp = |x: usize, y: usize| (30..32).contains(&x) && (30..32).contains(&y);
+        let value = |i: usize, lit: f32| match (i % w, i / w) {
+            (x, y) if lamp(x, y) => lit,
+            (_, y) if y >= 40 => 0.05,
+            _ => 0.0,
+        };
+        let input: Vec<[f32; 3]> = (0..w * h).map(|i| [value(i, 1000.0); 3]).collect();
+        let mut out: Vec<f32> = (0..w * h).flat_map(|i| [value(i, 600.0); 3]).collect();
+        stage(&mut out, input.iter().copied(), (w, h), f32::MAX).unwrap();
+        let black = (0..w * h).filter(|&i| value(i, 1.0) == 0.0);
+        let brightest = black
+            .flat_map(|i| &out[3 * i..3 * i + 3])
+            .fold(0f32, |a, &v| a.max(v));
+        assert!(brightest <= 0.05, "black sky lit to {brightest}");
+        let at = 3 * (30 * w + 30);
+        assert!((out[at] / 1000.0 - 1.0).abs() < 0.05, "lamp {}", out[at]);
+        let flat: Vec<f32> = input.iter().flatten().copied().collect();
+        assert!((mean(&out, 0) / mean(&flat, 0) - 1.0).abs() < 1e-5);
     }
 
     #[test]

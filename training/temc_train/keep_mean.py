@@ -28,6 +28,11 @@ GLOBAL_CLAMP = 16.0
 # as its few remnants multiplied tenfold (docs/keep-mean.md, "Spread").
 SPREAD_ABOVE = 1.25
 SPREAD_RADIUS = 16
+# That window mean is taken over the output clipped at SPREAD_CLIP times its own window mean,
+# so a lamp among dark pixels lights its window's share no more than a few ordinary pixels
+# would; what the clip holds back comes back in the last, scaling-only pass
+# (docs/keep-mean.md, "A spread that cannot leave a lamp").
+SPREAD_CLIP = 4.0
 
 
 def block_sums(x: np.ndarray, block: int) -> np.ndarray:
@@ -79,51 +84,54 @@ def window_mean(x: np.ndarray, r: int) -> np.ndarray:
     return s / ((i1 - i0)[:, None] * (j1 - j0)[None, :])[..., None]
 
 
+def clipped_spread(o: np.ndarray, excess: np.ndarray, radius: int = SPREAD_RADIUS,
+                   clip: float = SPREAD_CLIP) -> np.ndarray:
+    """The core's spread: `excess` (a factor's part above SPREAD_ABOVE) times the window
+    mean of the output `o` clipped at `clip` times its own window mean, so a lamp among dark
+    pixels lights its window's share no more than a few ordinary pixels would
+    (docs/keep-mean.md, "Spread"). `clip` inf: the unclipped spread before 2026-12-08."""
+    mean = window_mean(o, radius)
+    if np.isfinite(clip):
+        mean = window_mean(np.minimum(o, clip * mean), radius)
+    return excess * mean
+
+
 def apply(out: np.ndarray, f: np.ndarray, above: float = SPREAD_ABOVE,
-          radius: int = SPREAD_RADIUS, cap=None) -> np.ndarray:
-    """`out` times the factors `f`, where a factor's part above `above` multiplies the
-    output's window mean instead of the pixel (float64). `cap` (the probe's variants, not
-    the core's stage): (k, r) bounds that mean at k times the output's (2r + 1)^2 mean
-    around the pixel (r = 0: the pixel itself; r < 0: takes the window mean of the output
-    clipped at k times that mean instead), so a dimmed lamp's bright window cannot
-    light the black beside it (docs/keep-mean.md, "A spread that cannot leave a lamp")."""
+          spread=clipped_spread) -> np.ndarray:
+    """`out` times the factors `f` (float64), where a factor's part above `above` is
+    `spread(out, excess)` instead of multiplying the pixel (the probe passes its
+    variants)."""
     o = out.astype(np.float64)
     if not (f > above).any():
         return o * f
     scale = np.minimum(f, above)
-    mean = window_mean(o, radius)
-    if cap is not None:
-        k, r = cap
-        if r < 0:  # one outlier pass: a lamp's light stays out of its neighbours' share
-            mean = window_mean(np.minimum(o, k * mean), radius)
-        else:
-            mean = np.minimum(mean, k * (window_mean(o, r) if r else o))
-    return o * scale + (f - scale) * mean
+    return o * scale + spread(o, f - scale)
 
 
 def keep_mean(out: np.ndarray, noisy: np.ndarray, block: int = BLOCK, clamp: float = CLAMP,
-              ldr: bool = False, above: float = SPREAD_ABOVE, cap=None) -> np.ndarray:
+              ldr: bool = False, above: float = SPREAD_ABOVE,
+              spread=clipped_spread) -> np.ndarray:
     """`out` [H, W, 3] rescaled so each block's mean follows `noisy` (the sanitised input the
     reconstruction filtered); block 0 means one block for the whole image; factors above
     `above` spread (`apply`; inf: pure scaling). Result finite, in [0, LINEAR_MAX] (LDR:
     [0, 1])."""
-    return np.clip(apply(out, factors(out, noisy, block, clamp), above, cap=cap), 0.0,
+    return np.clip(apply(out, factors(out, noisy, block, clamp), above, spread), 0.0,
                    1.0 if ldr else LINEAR_MAX).astype(np.float32)
 
 
 def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False,
-          above: float = SPREAD_ABOVE, cap=None) -> np.ndarray:
+          above: float = SPREAD_ABOVE, spread=clipped_spread,
+          last_spreads: bool = False) -> np.ndarray:
     """The core's keep-mean stage: keep_mean over BLOCK-pixel blocks (local energy), then
-    over the whole image (what the block clamp left), then over the whole image once more:
-    window means are not sum-preserving near the image's edges, so after a spread the mean
-    is a little off, and this pass (a factor near 1: pure scaling) makes it exact. `above`
-    other than SPREAD_ABOVE is for the probe's variants (inf: scaling only), as is `cap`
-    (`apply`): with a cap the last pass only scales, so what the cap held back still comes
-    back and the mean stays exact."""
-    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above, cap)
-    whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above, cap)
-    last = above if cap is None else float("inf")
-    return keep_mean(whole, noisy, 0, GLOBAL_CLAMP, ldr, last, cap)
+    over the whole image (what the block clamp left), then over the whole image once more,
+    scaling only: window means are not sum-preserving near the image's edges and the clip
+    holds back a lamp's excess, so after a spread the mean is off, and this pass makes it
+    exact. Other `above` and `spread`, and `last_spreads` (the last pass spreads too, as
+    before 2026-12-08), are the probe's variants (above inf: scaling only)."""
+    local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above, spread)
+    whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above, spread)
+    last = above if last_spreads else float("inf")
+    return keep_mean(whole, noisy, 0, GLOBAL_CLAMP, ldr, last, spread)
 
 
 def factors(out: np.ndarray, noisy: np.ndarray, block: int, clamp: float) -> np.ndarray:

@@ -89,24 +89,22 @@ def test_missing_energy_comes_back_smooth_not_in_the_remnants():
     assert np.all(old[40, 23] > 1.6)
 
 
-def test_a_capped_spread_keeps_a_dimmed_lamp_out_of_the_black_beside_it():
-    """The probe's capped spread (`cap`, not the core's stage): a 2x2 lamp the filters
-    dimmed to 60 % on black, over a dim floor. The core's spread lights the black around it
-    with a share of the lamp's window mean; capped at the pixel, the black stays black, the
-    lamp gets its light back and the mean stays exact (the last pass scales)."""
+def test_a_dimmed_lamp_does_not_light_the_black_beside_it():
+    """Twin of src/keep_mean.rs's test: a 2x2 lamp the filters dimmed to 60 % on black, over
+    a dim floor. The spread before 2026-12-08 lit the black around it with a share of the
+    lamp's window mean; the core's spread, over the output clipped at SPREAD_CLIP times its
+    window mean, leaves it nearly black, the lamp gets its light back and the mean stays
+    exact (the last pass scales)."""
     noisy = np.zeros((64, 64, 3), np.float32)
     noisy[30:32, 30:32] = 1000.0
     noisy[40:, :] = 0.05  # a dim floor
     out = noisy.copy()
     out[30:32, 30:32] = 600.0
-    spread = km.stage(out, noisy)
-    capped = km.stage(out, noisy, cap=(1.0, 0))
-    assert spread[20, 31].min() > 0.5  # black sky lit by the lamp's window
-    assert capped[:40][noisy[:40, :, 0] == 0].max() == 0.0
-    assert abs(capped[30, 30, 0] / 1000.0 - 1) < 0.05
-    assert abs(capped.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5
-    # The window mean of the output clipped at 4x that mean: most of the leak goes.
-    clipped = km.stage(out, noisy, cap=(4.0, -1))
     black = noisy[:40, :, 0] == 0
-    assert clipped[:40][black].max() < 0.1 * spread[:40][black].max()
-    assert abs(clipped.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5
+    unclipped = lambda o, excess: km.clipped_spread(o, excess, clip=np.inf)
+    before = km.stage(out, noisy, spread=unclipped, last_spreads=True)
+    assert before[20, 31].min() > 0.5  # black sky lit by the lamp's window
+    got = km.stage(out, noisy)
+    assert got[:40][black].max() <= 0.05
+    assert abs(got[30, 30, 0] / 1000.0 - 1) < 0.05
+    assert abs(got.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5

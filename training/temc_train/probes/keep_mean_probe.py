@@ -19,7 +19,8 @@ import torch
 
 from .. import color, data, evaluate
 from ..checkpoint import load_checkpoint
-from ..keep_mean import interpolate, keep_mean, ratios, stage
+from ..keep_mean import (SPREAD_RADIUS, clipped_spread, interpolate, keep_mean, ratios, stage,
+                         window_mean)
 from ..onnx_export import recon_of
 from .probe import denoise
 
@@ -38,6 +39,35 @@ def _luma_variant(block, clamp):
     return apply
 
 
+def unclipped(o, excess):
+    """The spread before 2026-12-08: the output's own window mean."""
+    return clipped_spread(o, excess, clip=INF)
+
+
+def capped(k, r):
+    """The unclipped window mean bounded at k times the output's (2r + 1)^2 mean around the
+    pixel (r = 0: the pixel itself)."""
+    return lambda o, excess: excess * np.minimum(window_mean(o, SPREAD_RADIUS), k * (window_mean(o, r) if r else o))
+
+
+def split(k):
+    """What stands above k times the window mean scales in place; the rest spreads."""
+    def spread(o, excess):
+        base = np.minimum(o, k * window_mean(o, SPREAD_RADIUS))
+        return excess * (o - base + window_mean(base, SPREAD_RADIUS))
+    return spread
+
+
+def renormalised(k, most):
+    """The core's clipped spread scaled, per channel, up to `most` times, to the energy the
+    unclipped spread would add; the rest comes back in the last pass."""
+    def spread(o, excess):
+        full, clipped = unclipped(o, excess), clipped_spread(o, excess, clip=k)
+        g = full.sum((0, 1)) / np.maximum(clipped.sum((0, 1)), 1e-30)
+        return clipped * np.minimum(g, most)
+    return spread
+
+
 VARIANTS = {
     "none": lambda out, noisy: out,
     "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0, above=INF),
@@ -51,19 +81,27 @@ VARIANTS = {
         lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0, above=INF), noisy, 0, 16.0, above=INF),
     "blocks of 64, clamp 4, then global clamp 16, scaling only (the stage before 2026-12-04)":
         lambda out, noisy: stage(out, noisy, above=INF),
-    "the same, factors above 1.1 spread": lambda out, noisy: stage(out, noisy, above=1.1),
-    "the core's stage: the same, factors above 1.25 spread over 33x33": stage,
-    "the same, factors above 2 spread": lambda out, noisy: stage(out, noisy, above=2.0),
+    "the same, factors above 1.1 spread":
+        lambda out, noisy: stage(out, noisy, above=1.1, spread=unclipped, last_spreads=True),
+    "the stage before 2026-12-08: the same, factors above 1.25 spread over 33x33":
+        lambda out, noisy: stage(out, noisy, spread=unclipped, last_spreads=True),
+    "the core's stage: the same, spread over the output clipped at 4x its window mean": stage,
+    "the same, factors above 2 spread":
+        lambda out, noisy: stage(out, noisy, above=2.0, spread=unclipped, last_spreads=True),
     "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
-    "the core's stage, its spread capped at the pixel, last pass scaling":
-        lambda out, noisy: stage(out, noisy, cap=(1.0, 0)),
-    "the core's stage, its spread capped at 4x the pixel, last pass scaling":
-        lambda out, noisy: stage(out, noisy, cap=(4.0, 0)),
-    "the core's stage, its spread capped at 4x the 5x5 mean, last pass scaling":
-        lambda out, noisy: stage(out, noisy, cap=(4.0, 2)),
-    "the core's stage, its window mean over the output clipped at 4x that mean, last pass scaling":
-        lambda out, noisy: stage(out, noisy, cap=(4.0, -1)),
+    "the stage before 2026-12-08, its spread capped at the pixel, last pass scaling":
+        lambda out, noisy: stage(out, noisy, spread=capped(1.0, 0)),
+    "the stage before 2026-12-08, its spread capped at 4x the pixel, last pass scaling":
+        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 0)),
+    "the stage before 2026-12-08, its spread capped at 4x the 5x5 mean, last pass scaling":
+        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 2)),
+    "the stage before 2026-12-08, what stands above 4x the window mean scaling in place (split 4)":
+        lambda out, noisy: stage(out, noisy, spread=split(4.0)),
+    "the core's stage, factors above 2 spread":
+        lambda out, noisy: stage(out, noisy, above=2.0),
+    "the core's stage, its clipped spread renormalised (up to 2x) to the unclipped one's energy":
+        lambda out, noisy: stage(out, noisy, spread=renormalised(4.0, 2.0)),
 }
 
 
