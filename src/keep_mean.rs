@@ -37,11 +37,11 @@ pub const SPREAD_CLIP: f64 = 4.0;
 
 /// The core's keep-mean stage: [`keep_mean`] over [`BLOCK`]-pixel blocks (energy stays
 /// near where it was rendered), then over the whole image (its mean follows the input's
-/// within [`GLOBAL_CLAMP`]), then over the whole image once more: window means do not keep
-/// sums near the image's edges and the spread's clip holds back a lamp's excess, so a
-/// spread leaves the mean off, and this pass (scaling only) makes it exact. `input` is the sanitised noisy radiance,
-/// read once: the whole image's sum is the sum of its block sums. `max` is the output
-/// ceiling.
+/// within [`GLOBAL_CLAMP`]), then over the whole image once more, scaling only: window
+/// means do not keep sums near the image's edges and the spread's clip holds back a lamp's
+/// excess, so a spread leaves the mean off, and this pass makes it exact. `input` is the
+/// sanitised noisy radiance, read once: the whole image's sum is the sum of its block sums.
+/// `max` is the output ceiling.
 ///
 /// # Errors
 /// When the spread's two image-sized buffers cannot be allocated.
@@ -62,24 +62,10 @@ pub fn stage(
         .sum_axis(Axis(0))
         .into_shape_with_order((1, 1, 3))
         .expect("three channels");
-    rescale(
-        out,
-        (w, h),
-        &whole,
-        w.max(h),
-        GLOBAL_CLAMP,
-        max,
-        SPREAD_ABOVE,
-    )?;
-    rescale(
-        out,
-        (w, h),
-        &whole,
-        w.max(h),
-        GLOBAL_CLAMP,
-        max,
-        f64::INFINITY,
-    )
+    let global =
+        |out: &mut [f32], above| rescale(out, (w, h), &whole, w.max(h), GLOBAL_CLAMP, max, above);
+    global(out, SPREAD_ABOVE)?;
+    global(out, f64::INFINITY)
 }
 
 /// Checks that `out` holds `w` x `h` interleaved RGB pixels, at least one.

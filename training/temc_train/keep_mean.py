@@ -89,7 +89,7 @@ def clipped_spread(o: np.ndarray, excess: np.ndarray, radius: int = SPREAD_RADIU
     """The core's spread: `excess` (a factor's part above SPREAD_ABOVE) times the window
     mean of the output `o` clipped at `clip` times its own window mean, so a lamp among dark
     pixels lights its window's share no more than a few ordinary pixels would
-    (docs/keep-mean.md, "Spread"). `clip` inf: the unclipped spread before 2026-12-08."""
+    (docs/keep-mean.md, "Spread"). `clip` inf: the unclipped spread before the clip (2026-12-07)."""
     mean = window_mean(o, radius)
     if np.isfinite(clip):
         mean = window_mean(np.minimum(o, clip * mean), radius)
@@ -127,7 +127,7 @@ def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False,
     scaling only: window means are not sum-preserving near the image's edges and the clip
     holds back a lamp's excess, so after a spread the mean is off, and this pass makes it
     exact. Other `above` and `spread`, and `last_spreads` (the last pass spreads too, as
-    before 2026-12-08), are the probe's variants (above inf: scaling only)."""
+    before the clip), are the probe's variants (above inf: scaling only)."""
     local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above, spread)
     whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above, spread)
     last = above if last_spreads else float("inf")

@@ -40,7 +40,7 @@ def _luma_variant(block, clamp):
 
 
 def unclipped(o, excess):
-    """The spread before 2026-12-08: the output's own window mean."""
+    """The spread before the clip (2026-12-07): the output's own window mean."""
     return clipped_spread(o, excess, clip=INF)
 
 
@@ -68,6 +68,20 @@ def renormalised(k, most):
     return spread
 
 
+def tamed(k):
+    """No spread: the output clipped at k times its window mean takes the whole factor, what
+    stands above it only SPREAD_ABOVE; the last pass scales back the rest. Every pixel is
+    its own value times a factor, so black stays black."""
+    return lambda o, excess: excess * np.minimum(o, k * window_mean(o, SPREAD_RADIUS))
+
+
+def input_bounded(noisy, k, r):
+    """The core's clipped spread, at most k times the noisy input's (2r + 1)^2 mean: where the
+    renderer saw nothing within r pixels, nothing is added."""
+    bound = k * window_mean(noisy.astype(np.float64), r)
+    return lambda o, excess: np.minimum(clipped_spread(o, excess), excess * bound)
+
+
 VARIANTS = {
     "none": lambda out, noisy: out,
     "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0, above=INF),
@@ -83,25 +97,29 @@ VARIANTS = {
         lambda out, noisy: stage(out, noisy, above=INF),
     "the same, factors above 1.1 spread":
         lambda out, noisy: stage(out, noisy, above=1.1, spread=unclipped, last_spreads=True),
-    "the stage before 2026-12-08: the same, factors above 1.25 spread over 33x33":
+    "the stage before the clip: the same, factors above 1.25 spread over 33x33":
         lambda out, noisy: stage(out, noisy, spread=unclipped, last_spreads=True),
     "the core's stage: the same, spread over the output clipped at 4x its window mean": stage,
     "the same, factors above 2 spread":
         lambda out, noisy: stage(out, noisy, above=2.0, spread=unclipped, last_spreads=True),
     "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
-    "the stage before 2026-12-08, its spread capped at the pixel, last pass scaling":
+    "the stage before the clip, its spread capped at the pixel, last pass scaling":
         lambda out, noisy: stage(out, noisy, spread=capped(1.0, 0)),
-    "the stage before 2026-12-08, its spread capped at 4x the pixel, last pass scaling":
+    "the stage before the clip, its spread capped at 4x the pixel, last pass scaling":
         lambda out, noisy: stage(out, noisy, spread=capped(4.0, 0)),
-    "the stage before 2026-12-08, its spread capped at 4x the 5x5 mean, last pass scaling":
+    "the stage before the clip, its spread capped at 4x the 5x5 mean, last pass scaling":
         lambda out, noisy: stage(out, noisy, spread=capped(4.0, 2)),
-    "the stage before 2026-12-08, what stands above 4x the window mean scaling in place (split 4)":
+    "the stage before the clip, what stands above 4x the window mean scaling in place (split 4)":
         lambda out, noisy: stage(out, noisy, spread=split(4.0)),
     "the core's stage, factors above 2 spread":
         lambda out, noisy: stage(out, noisy, above=2.0),
     "the core's stage, its clipped spread renormalised (up to 2x) to the unclipped one's energy":
         lambda out, noisy: stage(out, noisy, spread=renormalised(4.0, 2.0)),
+    "the core's stage, no spread: what stands above 4x the window mean takes 1.25 (tamed)":
+        lambda out, noisy: stage(out, noisy, spread=tamed(4.0)),
+    "the core's stage, its spread at most 4x the noisy input's 5x5 mean (input-bounded)":
+        lambda out, noisy: stage(out, noisy, spread=input_bounded(noisy, 4.0, 2)),
 }
 
 
