@@ -82,6 +82,23 @@ def input_bounded(noisy, k, r):
     return lambda o, excess: np.minimum(clipped_spread(o, excess), excess * bound)
 
 
+def bright_first(k, most, input_too=False):
+    """Before the core's stage, the pixels of the output above k times its window mean (a
+    lamp and the halo the filters made of it, or kept remnants) get one factor of their own
+    per channel, the noisy input's sum over them / the output's, clamped to [1, most]: a
+    lamp's deficit goes back to the lamp instead of raising the whole image."""
+    def variant(out, noisy):
+        o = out.astype(np.float64)
+        bright = o > k * window_mean(o, SPREAD_RADIUS)
+        if input_too:  # and the noisy input's 3x3 mean above k times its window mean
+            n = noisy.astype(np.float64)
+            bright &= window_mean(n, 1) > k * window_mean(n, SPREAD_RADIUS)
+        sums = [(np.where(bright, x, 0.0)).sum((0, 1)) for x in (noisy.astype(np.float64), o)]
+        g = np.clip(sums[0] / np.maximum(sums[1], 1e-30), 1.0, most)
+        return stage(np.where(bright, o * g, o).astype(np.float32), noisy)
+    return variant
+
+
 VARIANTS = {
     "none": lambda out, noisy: out,
     "global, per channel": lambda out, noisy: keep_mean(out, noisy, 0, 4.0, above=INF),
@@ -120,6 +137,12 @@ VARIANTS = {
         lambda out, noisy: stage(out, noisy, spread=tamed(4.0)),
     "the core's stage, its spread at most 4x the noisy input's 5x5 mean (input-bounded)":
         lambda out, noisy: stage(out, noisy, spread=input_bounded(noisy, 4.0, 2)),
+    "the core's stage after the bright pixels' own factor (up to 1.5; bright-first)":
+        bright_first(4.0, 1.5),
+    "the core's stage after the bright pixels' own factor (up to 2; bright-first)":
+        bright_first(4.0, 2.0),
+    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 mean too; bright-first)":
+        bright_first(4.0, 1.5, input_too=True),
 }
 
 
@@ -142,13 +165,14 @@ def main(argv=None):
     ap.add_argument("--scenes", default="", help="comma-separated scene-name prefixes to probe "
                     "(default: every scene of the splits)")
     ap.add_argument("--variants", default="", help="probe only the variants whose names hold "
-                    "this text (the noisy input's row stays)")
+                    "one of these comma-separated texts (the noisy input's row stays)")
     a = ap.parse_args(argv)
     torch.set_num_threads(a.threads)
     prefixes = tuple(p for p in a.scenes.split(",") if p)
     scenes = [sc for split in a.splits.split(",") for sc in data.load_split(a.data, split)
               if not prefixes or sc.name.startswith(prefixes)]
-    variants = {k: v for k, v in VARIANTS.items() if a.variants in k}
+    texts = a.variants.split(",")
+    variants = {k: v for k, v in VARIANTS.items() if any(t in k for t in texts)}
     only = {int(x) for x in a.spp.split(",") if x}
     model, *_ = load_checkpoint(a.checkpoint)
     recon = recon_of(model)
@@ -171,7 +195,7 @@ def main(argv=None):
     lines = [
         "# The keep-mean stage, measured",
         "",
-        "Regenerate: `cd training && python -m temc_train.probes.keep_mean_probe --data ../data/spectral-v2 "
+        "Regenerate: `cd training && python -m temc_train.probes.keep_mean_probe --data " + a.data + " "
         f"--checkpoint {a.checkpoint} --splits {a.splits}" + (f" --spp {a.spp}" if a.spp else "")
         + (f" --scenes {a.scenes}" if a.scenes else "")
         + (f" --variants '{a.variants}'" if a.variants else "") + f" --out {a.out}`.",
