@@ -82,7 +82,7 @@ def input_bounded(noisy, k, r):
     return lambda o, excess: np.minimum(clipped_spread(o, excess), excess * bound)
 
 
-def bright_first(k, most, input_too=False):
+def bright_first(k, most, input_radius=None):
     """Before the core's stage, the pixels of the output above k times its window mean (a
     lamp and the halo the filters made of it, or kept remnants) get one factor of their own
     per channel, the noisy input's sum over them / the output's, clamped to [1, most]: a
@@ -90,9 +90,9 @@ def bright_first(k, most, input_too=False):
     def variant(out, noisy):
         o = out.astype(np.float64)
         bright = o > k * window_mean(o, SPREAD_RADIUS)
-        if input_too:  # and the noisy input's 3x3 mean above k times its window mean
+        if input_radius is not None:  # and the noisy input's mean around it likewise
             n = noisy.astype(np.float64)
-            bright &= window_mean(n, 1) > k * window_mean(n, SPREAD_RADIUS)
+            bright &= window_mean(n, input_radius) > k * window_mean(n, SPREAD_RADIUS)
         sums = [(np.where(bright, x, 0.0)).sum((0, 1)) for x in (noisy.astype(np.float64), o)]
         g = np.clip(sums[0] / np.maximum(sums[1], 1e-30), 1.0, most)
         return stage(np.where(bright, o * g, o).astype(np.float32), noisy)
@@ -142,7 +142,11 @@ VARIANTS = {
     "the core's stage after the bright pixels' own factor (up to 2; bright-first)":
         bright_first(4.0, 2.0),
     "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 mean too; bright-first)":
-        bright_first(4.0, 1.5, input_too=True),
+        bright_first(4.0, 1.5, input_radius=1),
+    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 5x5 mean too; bright-first)":
+        bright_first(4.0, 1.5, input_radius=2),
+    "the core's stage after the bright pixels' own factor (above 8x, up to 1.5, bright in the input's 5x5 mean too; bright-first)":
+        bright_first(8.0, 1.5, input_radius=2),
 }
 
 
