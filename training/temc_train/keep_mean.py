@@ -89,7 +89,8 @@ def clipped_spread(o: np.ndarray, excess: np.ndarray, radius: int = SPREAD_RADIU
     """The core's spread: `excess` (a factor's part above SPREAD_ABOVE) times the window
     mean of the output `o` clipped at `clip` times its own window mean, so a lamp among dark
     pixels lights its window's share no more than a few ordinary pixels would
-    (docs/keep-mean.md, "Spread"). `clip` inf: the unclipped spread before the clip (2026-12-07)."""
+    (docs/keep-mean.md, "Spread"). `clip` inf: the unclipped spread of before 2026-12-07's
+    clip."""
     mean = window_mean(o, radius)
     if np.isfinite(clip):
         mean = window_mean(np.minimum(o, clip * mean), radius)

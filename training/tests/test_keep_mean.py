@@ -91,10 +91,10 @@ def test_missing_energy_comes_back_smooth_not_in_the_remnants():
 
 def test_a_dimmed_lamp_does_not_light_the_black_beside_it():
     """Twin of src/keep_mean.rs's test: a 2x2 lamp the filters dimmed to 60 % on black, over
-    a dim floor. The spread before the clip (2026-12-07) lit the black around it with a share of the
-    lamp's window mean; the core's spread, over the output clipped at SPREAD_CLIP times its
-    window mean, leaves it nearly black, the lamp gets its light back and the mean stays
-    exact (the last pass scales)."""
+    a dim floor. The spread before the clip (2026-12-07) lit the black around it with a
+    share of the lamp's window mean; the core's spread, over the output clipped at
+    SPREAD_CLIP times its window mean, leaves it nearly black, the lamp gets its light back
+    and the mean stays exact (the last pass scales)."""
     noisy = np.zeros((64, 64, 3), np.float32)
     noisy[30:32, 30:32] = 1000.0
     noisy[40:, :] = 0.05  # a dim floor

@@ -47,7 +47,10 @@ def unclipped(o, excess):
 def capped(k, r):
     """The unclipped window mean bounded at k times the output's (2r + 1)^2 mean around the
     pixel (r = 0: the pixel itself)."""
-    return lambda o, excess: excess * np.minimum(window_mean(o, SPREAD_RADIUS), k * (window_mean(o, r) if r else o))
+    def spread(o, excess):
+        near = window_mean(o, r) if r else o
+        return excess * np.minimum(window_mean(o, SPREAD_RADIUS), k * near)
+    return spread
 
 
 def split(k):
@@ -141,11 +144,14 @@ VARIANTS = {
         bright_first(4.0, 1.5),
     "the core's stage after the bright pixels' own factor (up to 2; bright-first)":
         bright_first(4.0, 2.0),
-    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 mean too; bright-first)":
+    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 "
+    "mean too; bright-first)":
         bright_first(4.0, 1.5, input_radius=1),
-    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 5x5 mean too; bright-first)":
+    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 5x5 "
+    "mean too; bright-first)":
         bright_first(4.0, 1.5, input_radius=2),
-    "the core's stage after the bright pixels' own factor (above 8x, up to 1.5, bright in the input's 5x5 mean too; bright-first)":
+    "the core's stage after the bright pixels' own factor (above 8x, up to 1.5, bright in the "
+    "input's 5x5 mean too; bright-first)":
         bright_first(8.0, 1.5, input_radius=2),
 }
 
