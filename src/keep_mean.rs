@@ -44,7 +44,7 @@ pub const SPREAD_CLIP: f64 = 4.0;
 /// `max` is the output ceiling.
 ///
 /// # Errors
-/// When the spread's two image-sized buffers cannot be allocated.
+/// When the spread's one image-sized buffer cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long or `w` or `h` is 0.
@@ -121,7 +121,7 @@ fn axis(n: usize, g: usize, block: usize) -> Vec<(usize, usize, f64)> {
 /// black); its part above [`SPREAD_ABOVE`] spreads; the result is clamped to [0, `max`].
 ///
 /// # Errors
-/// When the spread's two image-sized buffers cannot be allocated.
+/// When the spread's one image-sized buffer cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long, `w` or `h` is 0, or `clamp` < 1.
@@ -168,41 +168,50 @@ fn rescale(
         }
         return Ok(());
     }
-    let clipped = clipped_to_window_means(out, (w, h))?;
-    let rows = row_means(&clipped, (w, h), SPREAD_RADIUS)?;
-    drop(clipped);
-    window_means(rows.view(), SPREAD_RADIUS, |y, mean| {
+    let mut rows = row_means(out, (w, h), SPREAD_RADIUS)?;
+    clip_to_window_means(out, &mut rows);
+    let mut means = WindowMeans::new(rows.view(), SPREAD_RADIUS);
+    for (y, row) in out.chunks_exact_mut(3 * w).enumerate() {
+        let mean = means.next(rows.view(), y);
         let mean = mean.as_slice().expect("a fresh array is contiguous");
-        let row = &mut out[y * 3 * w..][..3 * w];
         for ((v, f), m) in row.iter_mut().zip(factors.row(y)).zip(mean) {
             let scale = f.min(above);
             let o = *v as f64 * scale + (f - scale) * m;
             *v = (o as f32).clamp(0.0, max);
         }
-    });
+    }
     Ok(())
 }
 
-/// `img` with every value clipped at [`SPREAD_CLIP`] times its window mean (radius
-/// [`SPREAD_RADIUS`]): the spread's source, so that a lamp among dark pixels lights its
-/// window's share no more than a few ordinary pixels would (docs/keep-mean.md, "Spread").
-fn clipped_to_window_means(
-    img: &[f32],
-    (w, h): (usize, usize),
-) -> Result<Vec<f32>, TryReserveError> {
-    let rows = row_means(img, (w, h), SPREAD_RADIUS)?;
-    let mut clipped = Vec::new();
-    clipped.try_reserve_exact(img.len())?;
-    window_means(rows.view(), SPREAD_RADIUS, |y, mean| {
-        let row = &img[y * 3 * w..][..3 * w];
-        let mean = mean.as_slice().expect("a fresh array is contiguous");
-        clipped.extend(
-            row.iter()
-                .zip(mean)
-                .map(|(&v, &m)| (v as f64).min(SPREAD_CLIP * m) as f32),
-        );
-    });
-    Ok(clipped)
+/// Turns `rows`, the [`row_means`] of `img`, into the row means of `img` clipped at
+/// [`SPREAD_CLIP`] times its window mean (radius [`SPREAD_RADIUS`]): the spread's source,
+/// so that a lamp among dark pixels lights its window's share no more than a few ordinary
+/// pixels would (docs/keep-mean.md, "Spread"). In place, to keep the spread at one
+/// image-sized buffer: a clipped row waits in a ring of r + 1 rows until the window has
+/// passed the row it replaces.
+fn clip_to_window_means(img: &[f32], rows: &mut Array3<f32>) {
+    let (h, w, _) = rows.dim();
+    let span = SPREAD_RADIUS + 1;
+    let mut ring = Array3::<f32>::zeros((span.min(h), w, 3));
+    let (mut prefix, mut clipped) = (vec![[0f64; 3]; w + 1], vec![0f32; 3 * w]);
+    let mut means = WindowMeans::new(rows.view(), SPREAD_RADIUS);
+    for (y, line) in img.chunks_exact(3 * w).enumerate() {
+        let mean = means.next(rows.view(), y);
+        for ((c, &v), &m) in clipped.iter_mut().zip(line).zip(mean.iter()) {
+            *c = (v as f64).min(SPREAD_CLIP * m) as f32;
+        }
+        // `next(y)` took row y - span out of the window for good: its slot is free.
+        let mut slot = ring.index_axis_mut(Axis(0), y % span);
+        if y >= span {
+            rows.index_axis_mut(Axis(0), y - span).assign(&slot);
+        }
+        let dst = slot.as_slice_mut().expect("a fresh array is contiguous");
+        segment_means(&clipped, SPREAD_RADIUS, &mut prefix, dst);
+    }
+    for y in h.saturating_sub(span)..h {
+        let slot = ring.index_axis(Axis(0), y % span);
+        rows.index_axis_mut(Axis(0), y).assign(&slot);
+    }
 }
 
 /// The factor at each pixel and channel: bilinear between the block centres, horizontally
@@ -262,7 +271,7 @@ fn window(i: usize, n: usize, r: usize) -> (usize, usize) {
 }
 
 /// Each pixel's per-channel mean over its row segment of radius `r` (inside the image), for
-/// [`window_means`]: the window is a product of segments, so its mean is separable.
+/// [`WindowMeans`]: the window is a product of segments, so its mean is separable.
 fn row_means(
     img: &[f32],
     (w, h): (usize, usize),
@@ -270,50 +279,76 @@ fn row_means(
 ) -> Result<Array3<f32>, TryReserveError> {
     let mut rows = Vec::new();
     rows.try_reserve_exact(w * h * 3)?;
+    rows.resize(w * h * 3, 0.0);
     let mut prefix = vec![[0f64; 3]; w + 1];
-    for line in img.chunks_exact(3 * w) {
-        for (x, p) in line.chunks_exact(3).enumerate() {
-            for k in 0..3 {
-                prefix[x + 1][k] = prefix[x][k] + p[k] as f64;
-            }
-        }
-        for x in 0..w {
-            let (lo, hi) = window(x, w, r);
-            let n = (hi - lo) as f64;
-            rows.extend((0..3).map(|k| ((prefix[hi][k] - prefix[lo][k]) / n) as f32));
-        }
+    for (line, dst) in img.chunks_exact(3 * w).zip(rows.chunks_exact_mut(3 * w)) {
+        segment_means(line, r, &mut prefix, dst);
     }
     Ok(Array3::from_shape_vec((h, w, 3), rows).expect("one mean per pixel and channel"))
 }
 
-/// Calls `f(y, means)` for every row y in order, `means` (x, channel) the (2r + 1)^2 window
-/// means (the [`row_means`] averaged over the window's rows, in float64 running sums).
-fn window_means(
-    rows: ArrayView3<'_, f32>,
+/// One row of [`row_means`]: `dst` (interleaved like `line`) gets each pixel's per-channel
+/// mean over its segment of radius `r`; `prefix` (w + 1 long) is scratch.
+fn segment_means(line: &[f32], r: usize, prefix: &mut [[f64; 3]], dst: &mut [f32]) {
+    let w = line.len() / 3;
+    for (x, p) in line.chunks_exact(3).enumerate() {
+        for k in 0..3 {
+            prefix[x + 1][k] = prefix[x][k] + p[k] as f64;
+        }
+    }
+    for (x, d) in dst.chunks_exact_mut(3).enumerate() {
+        let (lo, hi) = window(x, w, r);
+        let n = (hi - lo) as f64;
+        for (k, v) in d.iter_mut().enumerate() {
+            *v = ((prefix[hi][k] - prefix[lo][k]) / n) as f32;
+        }
+    }
+}
+
+/// The (2r + 1)^2 window means of an image row by row, in order: the [`row_means`]
+/// averaged over the window's rows, in float64 running sums. The rows are passed to every
+/// step, not held, so a caller may rewrite rows the window has passed.
+struct WindowMeans {
     r: usize,
-    mut f: impl FnMut(usize, ArrayView2<'_, f64>),
-) {
-    let (h, w, _) = rows.dim();
-    let (mut acc, mut mean) = (Array2::<f64>::zeros((w, 3)), Array2::<f64>::zeros((w, 3)));
-    let add = |acc: &mut Array2<f64>, y: usize, sign: f64| {
-        Zip::from(acc)
+    acc: Array2<f64>,
+    mean: Array2<f64>,
+}
+
+impl WindowMeans {
+    fn new(rows: ArrayView3<'_, f32>, r: usize) -> Self {
+        let (h, w, _) = rows.dim();
+        let mut means = WindowMeans {
+            r,
+            acc: Array2::zeros((w, 3)),
+            mean: Array2::zeros((w, 3)),
+        };
+        for y in 0..r.min(h) {
+            means.add(rows, y, 1.0);
+        }
+        means
+    }
+
+    fn add(&mut self, rows: ArrayView3<'_, f32>, y: usize, sign: f64) {
+        Zip::from(&mut self.acc)
             .and(rows.index_axis(Axis(0), y))
             .for_each(|a, &v| *a += sign * v as f64);
-    };
-    for y in 0..r.min(h) {
-        add(&mut acc, y, 1.0);
     }
-    for y in 0..h {
+
+    /// Row y's means, (x, channel); y counts up from 0 by one.
+    fn next(&mut self, rows: ArrayView3<'_, f32>, y: usize) -> ArrayView2<'_, f64> {
+        let (h, r) = (rows.dim().0, self.r);
         if y + r < h {
-            add(&mut acc, y + r, 1.0);
+            self.add(rows, y + r, 1.0);
         }
         if y > r {
-            add(&mut acc, y - r - 1, -1.0);
+            self.add(rows, y - r - 1, -1.0);
         }
         let (lo, hi) = window(y, h, r);
         let n = (hi - lo) as f64;
-        Zip::from(&mut mean).and(&acc).for_each(|m, &a| *m = a / n);
-        f(y, mean.view());
+        Zip::from(&mut self.mean)
+            .and(&self.acc)
+            .for_each(|m, &a| *m = a / n);
+        self.mean.view()
     }
 }
 
@@ -428,6 +463,37 @@ mod tests {
         assert!((out[at] / 1000.0 - 1.0).abs() < 0.05, "lamp {}", out[at]);
         let flat: Vec<f32> = input.iter().flatten().copied().collect();
         assert!((mean(&out, 0) / mean(&flat, 0) - 1.0).abs() < 1e-5);
+    }
+
+    /// The in-place clip (a ring of rows) against the plain one: the clipped image
+    /// written out whole, then its row means; taller and shorter than the ring.
+    #[test]
+    fn the_in_place_clip_matches_the_plain_one() {
+        for (w, h) in [(23, 41), (9, 5), (4, 17), (6, 18)] {
+            let img: Vec<f32> = (0..w * h * 3)
+                .map(|i| {
+                    if i % 97 == 5 {
+                        500.0
+                    } else {
+                        (i % 13) as f32 * 0.1
+                    }
+                })
+                .collect();
+            let mut rows = row_means(&img, (w, h), SPREAD_RADIUS).unwrap();
+            let mut means = WindowMeans::new(rows.view(), SPREAD_RADIUS);
+            let mut clipped = Vec::new();
+            for (y, line) in img.chunks_exact(3 * w).enumerate() {
+                let mean = means.next(rows.view(), y);
+                clipped.extend(
+                    line.iter()
+                        .zip(mean.iter())
+                        .map(|(&v, &m)| (v as f64).min(SPREAD_CLIP * m) as f32),
+                );
+            }
+            let want = row_means(&clipped, (w, h), SPREAD_RADIUS).unwrap();
+            clip_to_window_means(&img, &mut rows);
+            assert_eq!(rows, want, "{w}x{h}");
+        }
     }
 
     #[test]
