@@ -65,7 +65,9 @@ def renormalised(k, most):
     """The core's clipped spread scaled, per channel, up to `most` times, to the energy the
     unclipped spread would add; the rest comes back in the last pass."""
     def spread(o, excess):
-        full, clipped = unclipped(o, excess), clipped_spread(o, excess, clip=k)
+        mean = window_mean(o, SPREAD_RADIUS)
+        full = excess * mean
+        clipped = excess * window_mean(np.minimum(o, k * mean), SPREAD_RADIUS)
         g = full.sum((0, 1)) / np.maximum(clipped.sum((0, 1)), 1e-30)
         return clipped * np.minimum(g, most)
     return spread
@@ -115,12 +117,12 @@ VARIANTS = {
         lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0, above=INF), noisy, 0, 16.0, above=INF),
     "blocks of 64, clamp 4, then global clamp 16, scaling only (the stage before 2026-12-04)":
         lambda out, noisy: stage(out, noisy, above=INF),
-    "the same, factors above 1.1 spread":
+    "the stage before the clip, factors above 1.1 spread":
         lambda out, noisy: stage(out, noisy, above=1.1, spread=unclipped, last_spreads=True),
     "the stage before the clip: the same, factors above 1.25 spread over 33x33":
         lambda out, noisy: stage(out, noisy, spread=unclipped, last_spreads=True),
     "the core's stage: the same, spread over the output clipped at 4x its window mean": stage,
-    "the same, factors above 2 spread":
+    "the stage before the clip, factors above 2 spread":
         lambda out, noisy: stage(out, noisy, above=2.0, spread=unclipped, last_spreads=True),
     "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
