@@ -19,6 +19,9 @@ use std::collections::TryReserveError;
 
 use ndarray::{Array2, Array3, ArrayView2, ArrayView3, Axis, Zip};
 
+mod lamps;
+pub use lamps::{LAMP_ABOVE, LAMP_GROW, LAMP_MOST};
+
 /// Block side in pixels of the stage's first pass (docs/keep-mean-measured.md).
 pub const BLOCK: usize = 128;
 /// The largest factor a block may be scaled by, up or down, in the first pass.
@@ -35,16 +38,19 @@ pub const SPREAD_RADIUS: usize = 16;
 /// own window mean, so a lamp's light stays out of its dark neighbours' share.
 pub const SPREAD_CLIP: f64 = 4.0;
 
-/// The core's keep-mean stage: [`keep_mean`] over [`BLOCK`]-pixel blocks (energy stays
-/// near where it was rendered), then over the whole image (its mean follows the input's
-/// within [`GLOBAL_CLAMP`]), then over the whole image once more, scaling only: window
-/// means do not keep sums near the image's edges and the spread's clip holds back a lamp's
-/// excess, so a spread leaves the mean off, and this pass makes it exact. `input` is the
-/// sanitised noisy radiance, read once: the whole image's sum is the sum of its block sums.
-/// `max` is the output ceiling.
+/// The core's keep-mean stage: first a lamp's own factor (the `lamps` module: filters that
+/// dim a lamp do not make the blocks raise its neighbours), then [`keep_mean`] over
+/// [`BLOCK`]-pixel blocks (energy stays near where it was rendered), then over the whole
+/// image (its mean follows the input's within [`GLOBAL_CLAMP`]), then over the whole image
+/// once more, scaling only: window means do not keep sums near the image's edges and the
+/// spread's clip holds back a lamp's excess, so a spread leaves the mean off, and this pass
+/// makes it exact. `input` is the sanitised noisy radiance, read once (its luminance is
+/// kept for the lamps; the whole image's sum is the sum of its block sums). `max` is the
+/// output ceiling.
 ///
 /// # Errors
-/// When the spread's one image-sized buffer cannot be allocated.
+/// When the lamps' planes (two f32 and a byte per pixel, freed before the blocks) or the
+/// spread's one image-sized buffer cannot be allocated.
 ///
 /// # Panics
 /// If `out` is not `w * h * 3` long or `w` or `h` is 0.
@@ -55,8 +61,24 @@ pub fn stage(
     max: f32,
 ) -> Result<(), TryReserveError> {
     check(out, (w, h));
+    let mut luma = Vec::new();
+    luma.try_reserve_exact(w * h)?;
+    let input = input.inspect(|&p| luma.push(lamps::luma(p) as f32));
     let blocks = block_sums(input, (w, h), BLOCK);
-    rescale(out, (w, h), &blocks, BLOCK, CLAMP, max, SPREAD_ABOVE)?;
+    lamps::restore_lamps(out, &luma, (w, h))?;
+    drop(luma);
+    blocks_then_whole(out, (w, h), &blocks, max)
+}
+
+/// The stage's three passes after the lamps: blocks, whole image, whole image scaling
+/// only; `blocks` are the input's [`block_sums`] at [`BLOCK`].
+fn blocks_then_whole(
+    out: &mut [f32],
+    (w, h): (usize, usize),
+    blocks: &Array3<f64>,
+    max: f32,
+) -> Result<(), TryReserveError> {
+    rescale(out, (w, h), blocks, BLOCK, CLAMP, max, SPREAD_ABOVE)?;
     let whole = blocks
         .sum_axis(Axis(0))
         .sum_axis(Axis(0))
@@ -438,31 +460,70 @@ mod tests {
             .all(|&v| (0.095..0.105).contains(&v)));
     }
 
-    /// A 2x2 lamp the filters dimmed to 60 % on black, over a dim floor: the spread's
-    /// window mean beside it would be the lamp's light (about 1.8 on the black sky before
-    /// [`SPREAD_CLIP`]); the black stays nearly black, the lamp gets its light back and the
-    /// image's mean is exact.
-    #[test]
-    fn a_dimmed_lamp_does_not_light_the_black_beside_it() {
-        let (w, h) = (64, 64);
+    /// A 2x2 lamp of 1000 on black the filters dimmed to `lit`, over a dim floor:
+    /// (input, output, whether pixel i is black).
+    fn lamp_on_black(lit: f32) -> (Vec<[f32; 3]>, Vec<f32>, impl Fn(usize) -> bool) {
+        let w = 64;
         let lamp = |x: usize, y: usize| (30..32).contains(&x) && (30..32).contains(&y);
-        let value = |i: usize, lit: f32| match (i % w, i / w) {
+        let value = move |i: usize, lit: f32| match (i % w, i / w) {
             (x, y) if lamp(x, y) => lit,
             (_, y) if y >= 40 => 0.05,
             _ => 0.0,
         };
-        let input: Vec<[f32; 3]> = (0..w * h).map(|i| [value(i, 1000.0); 3]).collect();
-        let mut out: Vec<f32> = (0..w * h).flat_map(|i| [value(i, 600.0); 3]).collect();
-        stage(&mut out, input.iter().copied(), (w, h), f32::MAX).unwrap();
-        let black = (0..w * h).filter(|&i| value(i, 1.0) == 0.0);
-        let brightest = black
+        let input = (0..w * w).map(|i| [value(i, 1000.0); 3]).collect();
+        let out = (0..w * w).flat_map(|i| [value(i, lit); 3]).collect();
+        (input, out, move |i| value(i, 1.0) == 0.0)
+    }
+
+    /// The brightest channel of the pixels `which` picks.
+    fn brightest(out: &[f32], which: impl Fn(usize) -> bool) -> f32 {
+        (0..out.len() / 3)
+            .filter(|&i| which(i))
             .flat_map(|i| &out[3 * i..3 * i + 3])
-            .fold(0f32, |a, &v| a.max(v));
-        assert!(brightest <= 0.05, "black sky lit to {brightest}");
+            .fold(0f32, |a, &v| a.max(v))
+    }
+
+    /// The lamp dimmed to 60 %, through the blocks alone (the lamp's own factor, which
+    /// would give it back before them, left out): the spread's window mean beside it would
+    /// be the lamp's light (about 1.8 on the black sky before [`SPREAD_CLIP`]); the black
+    /// stays nearly black, the lamp gets its light back and the image's mean is exact.
+    #[test]
+    fn a_dimmed_lamp_does_not_light_the_black_beside_it() {
+        let (w, h) = (64, 64);
+        let (input, mut out, black) = lamp_on_black(600.0);
+        let blocks = block_sums(input.iter().copied(), (w, h), BLOCK);
+        blocks_then_whole(&mut out, (w, h), &blocks, f32::MAX).unwrap();
+        let lit = brightest(&out, &black);
+        assert!(lit <= 0.05, "black sky lit to {lit}");
         let at = 3 * (30 * w + 30);
         assert!((out[at] / 1000.0 - 1.0).abs() < 0.05, "lamp {}", out[at]);
         let flat: Vec<f32> = input.iter().flatten().copied().collect();
         assert!((mean(&out, 0) / mean(&flat, 0) - 1.0).abs() < 1e-5);
+        // With its own factor first, the lamp is 900 before the blocks, which then only
+        // scale: the black stays exactly black.
+        let (input, mut out, black) = lamp_on_black(600.0);
+        stage(&mut out, input.into_iter(), (w, h), f32::MAX).unwrap();
+        assert_eq!(brightest(&out, black), 0.0);
+    }
+
+    /// A 2x2 lamp the filters dimmed to 80 % over a lit floor: without its own factor the
+    /// blocks would raise the floor 22 % to pay for it; with it the lamp gets its light
+    /// back and the floor stays as it was.
+    #[test]
+    fn a_dimmed_lamp_takes_its_own_light_back() {
+        let (w, h) = (64, 64);
+        let lamp = |i: usize| (30..32).contains(&(i % w)) && (30..32).contains(&(i / w));
+        let value = |i: usize, lit: f32| if lamp(i) { lit } else { 0.1 };
+        let input: Vec<[f32; 3]> = (0..w * h).map(|i| [value(i, 1000.0); 3]).collect();
+        let mut out: Vec<f32> = (0..w * h).flat_map(|i| [value(i, 800.0); 3]).collect();
+        stage(&mut out, input.into_iter(), (w, h), f32::MAX).unwrap();
+        for (i, p) in out.chunks_exact(3).enumerate() {
+            let want = value(i, 1000.0);
+            assert!(
+                p.iter().all(|&v| (v / want - 1.0).abs() < 1e-4),
+                "pixel {i}: {p:?} against {want}"
+            );
+        }
     }
 
     /// The in-place clip (a ring of rows) against the plain one: the clipped image
@@ -551,8 +612,9 @@ mod tests {
         }
     }
 
-    /// The stage's time at 1080p with a spread, for refactors that must keep its speed:
-    /// `cargo test --release --lib keep_mean::tests::bench -- --ignored --nocapture`.
+    /// The stage's time at 1080p with a spread, and without its lamps' factor (the blocks
+    /// alone), in one run, for refactors that must keep its speed: `cargo test --release
+    /// --lib keep_mean::tests::bench -- --ignored --nocapture`.
     #[test]
     #[ignore]
     fn bench() {
@@ -565,17 +627,24 @@ mod tests {
             .enumerate()
             .flat_map(|(i, p)| p.map(|v| v * if (i / w) % 200 < 50 { 0.1 } else { 0.9 }))
             .collect();
-        let mut best = f64::MAX;
-        for _ in 0..5 {
-            let mut out = dark.clone();
-            let t = std::time::Instant::now();
-            stage(&mut out, input.iter().copied(), (w, h), f32::MAX).unwrap();
-            best = best.min(t.elapsed().as_secs_f64());
-            assert!(out.iter().all(|v| v.is_finite()));
-        }
-        println!(
-            "keep-mean stage, 1920x1080 with spread: best of 5 {:.1} ms",
+        let time = |run: &dyn Fn(&mut Vec<f32>)| {
+            let mut best = f64::MAX;
+            for _ in 0..5 {
+                let mut out = dark.clone();
+                let t = std::time::Instant::now();
+                run(&mut out);
+                best = best.min(t.elapsed().as_secs_f64());
+                assert!(out.iter().all(|v| v.is_finite()));
+            }
             best * 1e3
+        };
+        let whole = time(&|out| stage(out, input.iter().copied(), (w, h), f32::MAX).unwrap());
+        let blocks = time(&|out| {
+            let sums = block_sums(input.iter().copied(), (w, h), BLOCK);
+            blocks_then_whole(out, (w, h), &sums, f32::MAX).unwrap()
+        });
+        println!(
+            "keep-mean stage, 1920x1080 with spread, best of 5: {whole:.1} ms; without the lamps' factor {blocks:.1} ms"
         );
     }
 }

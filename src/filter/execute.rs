@@ -608,7 +608,7 @@ pub(super) fn run(
     let limit = if job.hdr { color::LINEAR_MAX } else { 1.0 };
     let input = src.color.pixels().map(|c| radiance(c, job.hdr));
     keep_mean::stage(&mut staged, input, (w, h), limit)
-        .map_err(|_| Error::OutOfMemory(format!("keep-mean spread for {w}x{h}")))?;
+        .map_err(|_| Error::OutOfMemory(format!("keep-mean stage for {w}x{h}")))?;
     input::encode_output(job.color_input, &mut staged);
 
     let stats = ExecuteStats {

@@ -14,7 +14,7 @@ import pathlib
 
 import numpy as np
 
-from .color import LINEAR_MAX
+from .color import LINEAR_MAX, LUMA
 
 # The core's stage (src/keep_mean.rs), measured in docs/keep-mean-measured.md: blocks of
 # BLOCK pixels with factors in [1 / CLAMP, CLAMP], then the whole image with factors in
@@ -33,6 +33,14 @@ SPREAD_RADIUS = 16
 # would; what the clip holds back comes back in the last, scaling-only pass
 # (docs/keep-mean.md, "A spread that cannot leave a lamp").
 SPREAD_CLIP = 4.0
+# Before the blocks: a lamp (the pixels standing above LAMP_ABOVE times their window mean, of
+# radius SPREAD_RADIUS, in the noisy input's luminance over a whole 2x2 block and in the
+# output's) gets the input's light over itself and LAMP_GROW pixels around back, as one
+# factor of at most LAMP_MOST: filters that dim a lamp no longer make the blocks raise
+# everything else to pay for it (docs/keep-mean.md, "A lamp's light back to the lamp").
+LAMP_ABOVE = 8.0
+LAMP_GROW = 8
+LAMP_MOST = 1.5
 
 
 def block_sums(x: np.ndarray, block: int) -> np.ndarray:
@@ -120,15 +128,53 @@ def keep_mean(out: np.ndarray, noisy: np.ndarray, block: int = BLOCK, clamp: flo
                    1.0 if ldr else LINEAR_MAX).astype(np.float32)
 
 
+def opened(mask: np.ndarray) -> np.ndarray:
+    """The [H, W, ...] mask's morphological opening by a 2x2 square: the pixels of its
+    2x2-filled blocks. A lone pixel (a high sample of a noisy input) drops out; a lamp of 2x2
+    pixels or more stays."""
+    e = mask[:-1, :-1] & mask[1:, :-1] & mask[:-1, 1:] & mask[1:, 1:]
+    d = np.zeros_like(mask)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            d[dy:dy + e.shape[0], dx:dx + e.shape[1]] |= e
+    return d
+
+
+def restore_lamps(out: np.ndarray, noisy: np.ndarray, above: float = LAMP_ABOVE,
+                  grow: int = LAMP_GROW, most: float = LAMP_MOST,
+                  luma: bool = True) -> np.ndarray:
+    """`out` with its lamps scaled by one factor: the lamp is where the noisy input stands
+    above `above` times its window mean over a whole 2x2 block (the opening drops lone high
+    samples, so picking the set by its noise does not bias it) and the output does too; the
+    factor is 1 + (the input's sum - the output's over the lamp grown by `grow` pixels) / the
+    output's sum over the lamp, in [1, `most`]. From luminance (one factor for the three
+    channels, the lamp keeps its hue); `luma` False: per channel (the probe's variant)."""
+    o, n = out.astype(np.float64), noisy.astype(np.float64)
+    if luma:
+        o, n = ((x * LUMA).sum(-1, keepdims=True) for x in (o, n))
+    lamp = opened(n > above * window_mean(n, SPREAD_RADIUS)) & (o > above * window_mean(o, SPREAD_RADIUS))
+    if not lamp.any():
+        return out
+    near = window_mean(lamp.astype(np.float64), grow) > 0 if grow else lamp
+    deficit = np.where(near, n - o, 0.0).sum((0, 1))
+    own = np.where(lamp, o, 0.0).sum((0, 1))
+    g = np.clip(1.0 + deficit / np.maximum(own, 1e-30), 1.0, most)
+    return np.where(lamp, out * g, out).astype(np.float32)
+
+
 def stage(out: np.ndarray, noisy: np.ndarray, ldr: bool = False,
           above: float = SPREAD_ABOVE, spread=clipped_spread,
-          last_spreads: bool = False) -> np.ndarray:
-    """The core's keep-mean stage: keep_mean over BLOCK-pixel blocks (local energy), then
-    over the whole image (what the block clamp left), then over the whole image once more,
-    scaling only: window means are not sum-preserving near the image's edges and the clip
-    holds back a lamp's excess, so after a spread the mean is off, and this pass makes it
-    exact. Other `above` and `spread`, and `last_spreads` (the last pass spreads too, as
-    before the clip), are the probe's variants (above inf: scaling only)."""
+          last_spreads: bool = False, lamps: bool = True) -> np.ndarray:
+    """The core's keep-mean stage: the lamps' own factor (`restore_lamps`), then keep_mean
+    over BLOCK-pixel blocks (local energy), then over the whole image (what the block clamp
+    left), then over the whole image once more, scaling only: window means are not
+    sum-preserving near the image's edges and the clip holds back a lamp's excess, so after
+    a spread the mean is off, and this pass makes it exact. Other `above` and `spread`,
+    `last_spreads` (the last pass spreads too, as before the clip) and `lamps` False (no
+    lamp factor, as before 2026-12-07's second change) are the probe's variants (above
+    inf: scaling only)."""
+    if lamps:
+        out = restore_lamps(out, noisy)
     local = keep_mean(out, noisy, BLOCK, CLAMP, ldr, above, spread)
     whole = keep_mean(local, noisy, 0, GLOBAL_CLAMP, ldr, above, spread)
     last = above if last_spreads else float("inf")
@@ -180,6 +226,19 @@ def vector_cases():
     den = np.round(noisy * np.where(np.arange(w) < w // 3, 0.7, 1.2)[None, :, None], 4)
     want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)
     out.append(dict(name=f"stage_{w}x{h}_halves", w=w, h=h, block="stage", clamp=0.0, ldr=False,
+                    input=noisy.ravel().tolist(), output=den.ravel().tolist(),
+                    want=[float(f"{v:.9g}") for v in want.ravel()]))
+    # A lamp the output dimmed (its own factor) beside a lone high sample (no lamp), on
+    # noise: the lamps' set, its grown sum and factor, then the blocks.
+    h, w = 40, 48
+    noisy = np.round(rng.random((h, w, 3)) ** 2, 4)
+    den = np.round(noisy * rng.uniform(0.8, 1.2, (h, w, 3)), 4)
+    noisy[12:15, 30:33] = [300.0, 250.0, 120.0]
+    den[12:15, 30:33] = [240.0, 230.0, 90.0]
+    noisy[30, 8] = [300.0, 300.0, 300.0]
+    den[30, 8] = [4.0, 4.0, 4.0]
+    want = stage(den.astype(np.float32), noisy.astype(np.float32)).astype(np.float64)
+    out.append(dict(name=f"stage_{w}x{h}_lamp", w=w, h=h, block="stage", clamp=0.0, ldr=False,
                     input=noisy.ravel().tolist(), output=den.ravel().tolist(),
                     want=[float(f"{v:.9g}") for v in want.ravel()]))
     return out

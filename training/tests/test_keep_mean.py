@@ -91,8 +91,9 @@ def test_missing_energy_comes_back_smooth_not_in_the_remnants():
 
 def test_a_dimmed_lamp_does_not_light_the_black_beside_it():
     """Twin of src/keep_mean.rs's test: a 2x2 lamp the filters dimmed to 60 % on black, over
-    a dim floor. The spread before the clip (2026-12-07) lit the black around it with a
-    share of the lamp's window mean; the core's spread, over the output clipped at
+    a dim floor, through the blocks alone (the lamp's own factor, which would give it back
+    before them, left out). The spread before the clip (2026-12-07) lit the black around it
+    with a share of the lamp's window mean; the core's spread, over the output clipped at
     SPREAD_CLIP times its window mean, leaves it nearly black, the lamp gets its light back
     and the mean stays exact (the last pass scales)."""
     noisy = np.zeros((64, 64, 3), np.float32)
@@ -102,9 +103,43 @@ def test_a_dimmed_lamp_does_not_light_the_black_beside_it():
     out[30:32, 30:32] = 600.0
     black = noisy[:40, :, 0] == 0
     unclipped = lambda o, excess: km.clipped_spread(o, excess, clip=np.inf)
-    before = km.stage(out, noisy, spread=unclipped, last_spreads=True)
+    before = km.stage(out, noisy, spread=unclipped, last_spreads=True, lamps=False)
     assert before[20, 31].min() > 0.5  # black sky lit by the lamp's window
-    got = km.stage(out, noisy)
+    got = km.stage(out, noisy, lamps=False)
     assert got[:40][black].max() <= 0.05
     assert abs(got[30, 30, 0] / 1000.0 - 1) < 0.05
     assert abs(got.astype(np.float64).sum() / noisy.astype(np.float64).sum() - 1) < 1e-5
+    # With its own factor first, the lamp is 900 before the blocks, which then only scale.
+    assert np.all(km.stage(out, noisy)[:40][black] == 0)
+
+
+def test_a_dimmed_lamp_takes_its_own_light_back():
+    """Twin of src/keep_mean.rs's test: a 2x2 lamp the filters dimmed to 80 % over a lit
+    floor. Without its own factor the blocks raise the floor 22 % to pay for it; with it the
+    lamp gets its light back and the floor stays as it was."""
+    noisy = np.full((64, 64, 3), 0.1, np.float32)
+    noisy[30:32, 30:32] = 1000.0
+    out = noisy.copy()
+    out[30:32, 30:32] = 800.0
+    before = km.stage(out, noisy, lamps=False)
+    assert before[5, 5, 0] > 0.12
+    got = km.stage(out, noisy)
+    np.testing.assert_allclose(got[5, 5], 0.1, rtol=1e-4)
+    np.testing.assert_allclose(got[30:32, 30:32], 1000.0, rtol=1e-4)
+
+
+def test_a_lone_high_sample_is_not_a_lamp():
+    """Twin of src/keep_mean/lamps.rs's test: a firefly of the noisy input (one pixel) whose
+    remnant the output kept is no lamp (the opening drops it), so its light goes back over
+    the block, not into the remnant; a 2x2 lamp beside it is one."""
+    noisy = np.full((40, 40, 3), 0.1, np.float32)
+    noisy[10, 10] = 400.0
+    noisy[25:27, 25:27] = 400.0
+    out = np.full((40, 40, 3), 0.1, np.float32)
+    out[10, 10] = 5.0
+    out[25:27, 25:27] = 300.0
+    got = km.restore_lamps(out, noisy)
+    assert np.all(got[10, 10] == 5.0)
+    assert np.all(got[25:27, 25:27] > 300.0)
+    rest = np.delete(got.reshape(-1, 3), [10 * 40 + 10, 25 * 40 + 25, 25 * 40 + 26, 26 * 40 + 25, 26 * 40 + 26], 0)
+    assert np.all(rest == np.float32(0.1))

@@ -19,8 +19,8 @@ import torch
 
 from .. import color, data, evaluate
 from ..checkpoint import load_checkpoint
-from ..keep_mean import (SPREAD_RADIUS, clipped_spread, interpolate, keep_mean, ratios, stage,
-                         window_mean)
+from ..keep_mean import (SPREAD_RADIUS, clipped_spread, interpolate, keep_mean, ratios,
+                         restore_lamps, stage, window_mean)
 from ..onnx_export import recon_of
 from .probe import denoise
 
@@ -88,7 +88,7 @@ def input_bounded(noisy, k, r):
 
 
 def bright_first(k, most, input_radius=None):
-    """Before the core's stage, the pixels of the output above k times its window mean (a
+    """Before the clip's stage, the pixels of the output above k times its window mean (a
     lamp and the halo the filters made of it, or kept remnants) get one factor of their own
     per channel, the noisy input's sum over them / the output's, clamped to [1, most]: a
     lamp's deficit goes back to the lamp instead of raising the whole image."""
@@ -100,8 +100,15 @@ def bright_first(k, most, input_radius=None):
             bright &= window_mean(n, input_radius) > k * window_mean(n, SPREAD_RADIUS)
         sums = [(np.where(bright, x, 0.0)).sum((0, 1)) for x in (noisy.astype(np.float64), o)]
         g = np.clip(sums[0] / np.maximum(sums[1], 1e-30), 1.0, most)
-        return stage(np.where(bright, o * g, o).astype(np.float32), noisy)
+        return stage(np.where(bright, o * g, o).astype(np.float32), noisy, lamps=False)
     return variant
+
+
+def lamp_first(k, most, grow=0, luma=False):
+    """The clip's stage after `restore_lamps` with other settings (the core's: k 8, grow 8,
+    most 1.5, luminance)."""
+    return lambda out, noisy: stage(restore_lamps(out, noisy, k, grow, most, luma), noisy,
+                                    lamps=False)
 
 
 VARIANTS = {
@@ -116,45 +123,60 @@ VARIANTS = {
     "blocks of 32, clamp 4, then global clamp 16":
         lambda out, noisy: keep_mean(keep_mean(out, noisy, 32, 4.0, above=INF), noisy, 0, 16.0, above=INF),
     "blocks of 64, clamp 4, then global clamp 16, scaling only (the stage before 2026-12-04)":
-        lambda out, noisy: stage(out, noisy, above=INF),
+        lambda out, noisy: stage(out, noisy, above=INF, lamps=False),
     "the stage before the clip, factors above 1.1 spread":
-        lambda out, noisy: stage(out, noisy, above=1.1, spread=unclipped, last_spreads=True),
+        lambda out, noisy: stage(out, noisy, above=1.1, spread=unclipped, last_spreads=True, lamps=False),
     "the stage before the clip: the same, factors above 1.25 spread over 33x33":
-        lambda out, noisy: stage(out, noisy, spread=unclipped, last_spreads=True),
-    "the core's stage: the same, spread over the output clipped at 4x its window mean": stage,
+        lambda out, noisy: stage(out, noisy, spread=unclipped, last_spreads=True, lamps=False),
+    "the clip's stage: the same, spread over the output clipped at 4x its window mean":
+        lambda out, noisy: stage(out, noisy, lamps=False),
     "the stage before the clip, factors above 2 spread":
-        lambda out, noisy: stage(out, noisy, above=2.0, spread=unclipped, last_spreads=True),
+        lambda out, noisy: stage(out, noisy, above=2.0, spread=unclipped, last_spreads=True, lamps=False),
     "blocks of 64, clamp 4": lambda out, noisy: keep_mean(out, noisy, 64, 4.0, above=INF),
     "blocks of 32, luminance, clamp 4": _luma_variant(32, 4.0),
     "the stage before the clip, its spread capped at the pixel, last pass scaling":
-        lambda out, noisy: stage(out, noisy, spread=capped(1.0, 0)),
+        lambda out, noisy: stage(out, noisy, spread=capped(1.0, 0), lamps=False),
     "the stage before the clip, its spread capped at 4x the pixel, last pass scaling":
-        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 0)),
+        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 0), lamps=False),
     "the stage before the clip, its spread capped at 4x the 5x5 mean, last pass scaling":
-        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 2)),
+        lambda out, noisy: stage(out, noisy, spread=capped(4.0, 2), lamps=False),
     "the stage before the clip, what stands above 4x the window mean scaling in place (split 4)":
-        lambda out, noisy: stage(out, noisy, spread=split(4.0)),
-    "the core's stage, factors above 2 spread":
-        lambda out, noisy: stage(out, noisy, above=2.0),
-    "the core's stage, its clipped spread renormalised (up to 2x) to the unclipped one's energy":
-        lambda out, noisy: stage(out, noisy, spread=renormalised(4.0, 2.0)),
-    "the core's stage, no spread: what stands above 4x the window mean takes 1.25 (tamed)":
-        lambda out, noisy: stage(out, noisy, spread=tamed(4.0)),
-    "the core's stage, its spread at most 4x the noisy input's 5x5 mean (input-bounded)":
-        lambda out, noisy: stage(out, noisy, spread=input_bounded(noisy, 4.0, 2)),
-    "the core's stage after the bright pixels' own factor (up to 1.5; bright-first)":
+        lambda out, noisy: stage(out, noisy, spread=split(4.0), lamps=False),
+    "the clip's stage, factors above 2 spread":
+        lambda out, noisy: stage(out, noisy, above=2.0, lamps=False),
+    "the clip's stage, its clipped spread renormalised (up to 2x) to the unclipped one's energy":
+        lambda out, noisy: stage(out, noisy, spread=renormalised(4.0, 2.0), lamps=False),
+    "the clip's stage, no spread: what stands above 4x the window mean takes 1.25 (tamed)":
+        lambda out, noisy: stage(out, noisy, spread=tamed(4.0), lamps=False),
+    "the clip's stage, its spread at most 4x the noisy input's 5x5 mean (input-bounded)":
+        lambda out, noisy: stage(out, noisy, spread=input_bounded(noisy, 4.0, 2), lamps=False),
+    "the clip's stage after the bright pixels' own factor (up to 1.5; bright-first)":
         bright_first(4.0, 1.5),
-    "the core's stage after the bright pixels' own factor (up to 2; bright-first)":
+    "the clip's stage after the bright pixels' own factor (up to 2; bright-first)":
         bright_first(4.0, 2.0),
-    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 "
+    "the clip's stage after the bright pixels' own factor (up to 1.5, bright in the input's 3x3 "
     "mean too; bright-first)":
         bright_first(4.0, 1.5, input_radius=1),
-    "the core's stage after the bright pixels' own factor (up to 1.5, bright in the input's 5x5 "
+    "the clip's stage after the bright pixels' own factor (up to 1.5, bright in the input's 5x5 "
     "mean too; bright-first)":
         bright_first(4.0, 1.5, input_radius=2),
-    "the core's stage after the bright pixels' own factor (above 8x, up to 1.5, bright in the "
+    "the clip's stage after the bright pixels' own factor (above 8x, up to 1.5, bright in the "
     "input's 5x5 mean too; bright-first)":
         bright_first(8.0, 1.5, input_radius=2),
+    "the clip's stage after a lamp's own factor (input bright in a 2x2 block and output "
+    "bright, per channel, up to 1.5; lamp-first)": lamp_first(4.0, 1.5),
+    "the clip's stage after a lamp's own factor (the same, deficit over the lamp grown by 4 "
+    "px; lamp-first)": lamp_first(4.0, 1.5, grow=4),
+    "the clip's stage after a lamp's own factor (the same, grown by 8 px; lamp-first)":
+        lamp_first(4.0, 1.5, grow=8),
+    "the clip's stage after a lamp's own factor (the same, grown by 8 px, up to 2; lamp-first)":
+        lamp_first(4.0, 2.0, grow=8),
+    "the clip's stage after a lamp's own factor (the same, grown by 8 px, from luminance; "
+    "lamp-first)": lamp_first(4.0, 1.5, grow=8, luma=True),
+    "the clip's stage after a lamp's own factor (the same, grown by 8 px, up to 1.25, from "
+    "luminance; lamp-first)": lamp_first(4.0, 1.25, grow=8, luma=True),
+    "the core's stage: the clip's after a lamp's own factor (above 8x, grown by 8 px, up to "
+    "1.5, from luminance; lamp-first)": stage,
 }
 
 
@@ -163,7 +185,7 @@ def row(res):
     de = float(np.mean([r[1] for r in res]))
     worst = max(abs(r[2] - 1) for r in res)
     within = sum(abs(r[2] - 1) <= 0.01 for r in res)
-    return f"{rel:.4f} | {de:.2f} | {100 * worst:.1f} % | {within}/{len(res)}"
+    return f"{rel:.5f} | {de:.3f} | {100 * worst:.1f} % | {within}/{len(res)}"
 
 
 def main(argv=None):

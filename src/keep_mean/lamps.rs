@@ -1,0 +1,243 @@
+//! A lamp's light back to the lamp, before the blocks (docs/keep-mean.md, "A lamp's light
+//! back to the lamp").
+//!
+//! Filters that dim a small lamp leave its block short of light, and the blocks then raise
+//! every pixel around it to pay the lamp's debt. A lamp here is where the noisy input's
+//! luminance stands above [`LAMP_ABOVE`] times its window mean over a whole 2x2 block (an
+//! opening: a lone high sample of a noisy input is not a lamp, so picking the set by its
+//! noise does not bias it) and the output's does too. The lamp gets one factor for its three
+//! channels (it keeps its hue): the input's luminance less the output's, summed over the
+//! lamp grown by [`LAMP_GROW`] pixels (where its filters put its light), over the output's
+//! sum on the lamp, plus one, in [1, [`LAMP_MOST`]]. `restore_lamps` in
+//! training/temc_train/keep_mean.py is the same function.
+
+use std::collections::TryReserveError;
+
+use super::{window, SPREAD_RADIUS};
+use crate::color::LUMA_WEIGHTS;
+
+/// A lamp stands above this many times its window mean (radius [`SPREAD_RADIUS`]), in the
+/// input and in the output.
+pub const LAMP_ABOVE: f64 = 8.0;
+/// The lamp's deficit is summed over the lamp grown by this many pixels.
+pub const LAMP_GROW: usize = 8;
+/// The largest factor a lamp gets.
+pub const LAMP_MOST: f64 = 1.5;
+
+/// A pixel's luminance in float64.
+pub(super) fn luma(p: [f32; 3]) -> f64 {
+    p.iter()
+        .zip(LUMA_WEIGHTS)
+        .map(|(&v, k)| v as f64 * k as f64)
+        .sum()
+}
+
+/// Scales the lamps of `out` (`w` x `h` interleaved RGB) by their factor; `input` is the
+/// noisy input's luminance ([`luma`] of the sanitised radiance, row by row). Holds one
+/// f32 and one byte per pixel beside `input`.
+///
+/// # Errors
+/// When the scratch plane or the mask cannot be allocated.
+pub(super) fn restore_lamps(
+    out: &mut [f32],
+    input: &[f32],
+    (w, h): (usize, usize),
+) -> Result<(), TryReserveError> {
+    let mut scratch = Vec::new();
+    scratch.try_reserve_exact(w * h)?;
+    scratch.resize(w * h, 0.0);
+    let mut lamp = Vec::new();
+    lamp.try_reserve_exact(w * h)?;
+    lamp.resize(w * h, false);
+    let out_luma = |i: usize| luma([out[3 * i], out[3 * i + 1], out[3 * i + 2]]);
+    above_window_mean(
+        |i| input[i] as f64,
+        (w, h),
+        &mut scratch,
+        |i, b| lamp[i] = b,
+    );
+    open(&mut lamp, (w, h));
+    // Most images have no lamp: the output's pass is not needed then.
+    if !lamp.contains(&true) {
+        return Ok(());
+    }
+    above_window_mean(out_luma, (w, h), &mut scratch, |i, b| lamp[i] &= b);
+    if !lamp.contains(&true) {
+        return Ok(());
+    }
+    let (mut deficit, mut own) = (0.0, 0.0);
+    near(&lamp, (w, h), LAMP_GROW, &mut scratch, |i| {
+        deficit += input[i] as f64 - out_luma(i);
+    });
+    for (i, _) in lamp.iter().enumerate().filter(|(_, &l)| l) {
+        own += out_luma(i);
+    }
+    let g = (1.0 + deficit / f64::max(own, 1e-30)).clamp(1.0, LAMP_MOST);
+    for (p, _) in out.chunks_exact_mut(3).zip(&lamp).filter(|(_, &l)| l) {
+        for v in p {
+            *v = (*v as f64 * g) as f32;
+        }
+    }
+    Ok(())
+}
+
+/// Calls `mark(i, v > LAMP_ABOVE * mean)` for every pixel i, row by row, where v is
+/// `value(i)` and mean its mean over the (2 [`SPREAD_RADIUS`] + 1)^2 window inside the
+/// image. `rows` (w * h) is scratch.
+fn above_window_mean(
+    value: impl Fn(usize) -> f64,
+    (w, h): (usize, usize),
+    rows: &mut [f32],
+    mut mark: impl FnMut(usize, bool),
+) {
+    debug_assert_eq!(rows.len(), w * h);
+    segments(&value, w, SPREAD_RADIUS, true, rows);
+    window_rows(rows, w, SPREAD_RADIUS, |y, acc, n| {
+        for (x, a) in acc.iter().enumerate() {
+            let i = y * w + x;
+            mark(i, value(i) > LAMP_ABOVE * (a / n));
+        }
+    });
+}
+
+/// Fills `rows` (w * h) with each pixel's sum (or, `mean`, mean) of `value` over its row
+/// segment of radius `r` inside the image: a window is the product of such segments.
+fn segments(value: impl Fn(usize) -> f64, w: usize, r: usize, mean: bool, rows: &mut [f32]) {
+    let mut prefix = vec![0f64; w + 1];
+    for (y, dst) in rows.chunks_exact_mut(w).enumerate() {
+        for x in 0..w {
+            prefix[x + 1] = prefix[x] + value(y * w + x);
+        }
+        for (x, d) in dst.iter_mut().enumerate() {
+            let (lo, hi) = window(x, w, r);
+            let n = if mean { (hi - lo) as f64 } else { 1.0 };
+            *d = ((prefix[hi] - prefix[lo]) / n) as f32;
+        }
+    }
+}
+
+/// Calls `each(y, sums, n)` for every row y: `sums` the column sums of `rows` over the n
+/// rows within `r` of y inside the image, kept as running float64 sums.
+fn window_rows(rows: &[f32], w: usize, r: usize, mut each: impl FnMut(usize, &[f64], f64)) {
+    let h = rows.len() / w;
+    let mut acc = vec![0f64; w];
+    let add = |acc: &mut [f64], y: usize, sign: f64| {
+        for (a, &v) in acc.iter_mut().zip(&rows[y * w..(y + 1) * w]) {
+            *a += sign * v as f64;
+        }
+    };
+    for y in 0..r.min(h) {
+        add(&mut acc, y, 1.0);
+    }
+    for y in 0..h {
+        if y + r < h {
+            add(&mut acc, y + r, 1.0);
+        }
+        if y > r {
+            add(&mut acc, y - r - 1, -1.0);
+        }
+        let (lo, hi) = window(y, h, r);
+        each(y, &acc, (hi - lo) as f64);
+    }
+}
+
+/// `mask`'s morphological opening by a 2x2 square, in place: the pixels of its 2x2-filled
+/// blocks. The erosion (anchored at a block's top left) runs down the rows, each reading
+/// only the rows below it; the dilation runs back up, each reading only the rows above it.
+fn open(mask: &mut [bool], (w, h): (usize, usize)) {
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            mask[i] = y + 1 < h && x + 1 < w && {
+                let (a, b) = (i + w, i + w + 1);
+                mask[i] && mask[i + 1] && mask[a] && mask[b]
+            };
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            let i = y * w + x;
+            let up = y > 0 && (mask[i - w] || (x > 0 && mask[i - w - 1]));
+            mask[i] = mask[i] || up || (x > 0 && mask[i - 1]);
+        }
+    }
+}
+
+/// Calls `visit(i)` for every pixel i within `r` pixels (a (2r + 1)^2 square) of a pixel of
+/// `mask`, row by row. `rows` (w * h) is scratch. The counts are small integers, exact in
+/// f32 and in the running sums, so an empty window sums to exactly 0.
+fn near(
+    mask: &[bool],
+    (w, h): (usize, usize),
+    r: usize,
+    rows: &mut [f32],
+    mut visit: impl FnMut(usize),
+) {
+    debug_assert_eq!(mask.len(), w * h);
+    segments(|i| mask[i] as u8 as f64, w, r, false, rows);
+    window_rows(rows, w, r, |y, counts, _| {
+        for (x, _) in counts.iter().enumerate().filter(|(_, &c)| c > 0.0) {
+            visit(y * w + x);
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A firefly of the noisy input (one pixel) whose remnant the output kept is no lamp
+    /// (the opening drops it): its light goes back over the block, not into the remnant. A
+    /// 2x2 lamp beside it is one. Twin of training/tests/test_keep_mean.py's.
+    #[test]
+    fn a_lone_high_sample_is_not_a_lamp() {
+        let w = 40;
+        let lamp = |i: usize| (25..27).contains(&(i % w)) && (25..27).contains(&(i / w));
+        let firefly = 10 * w + 10;
+        let (input, out): (Vec<f32>, Vec<f32>) = (0..w * w)
+            .map(|i| match i {
+                _ if i == firefly => (400.0, 5.0),
+                _ if lamp(i) => (400.0, 300.0),
+                _ => (0.1, 0.1),
+            })
+            .unzip();
+        let luma_in: Vec<f32> = input.iter().map(|&v| luma([v; 3]) as f32).collect();
+        let mut out: Vec<f32> = out.into_iter().flat_map(|v| [v; 3]).collect();
+        restore_lamps(&mut out, &luma_in, (w, w)).unwrap();
+        for (i, p) in out.chunks_exact(3).enumerate() {
+            match i {
+                _ if i == firefly => assert_eq!(p, [5.0; 3]),
+                _ if lamp(i) => assert!(p.iter().all(|&v| v > 300.0), "lamp {p:?}"),
+                _ => assert_eq!(p, [0.1; 3], "pixel {i}"),
+            }
+        }
+    }
+
+    #[test]
+    fn the_opening_keeps_blocks_and_drops_lone_pixels() {
+        let (w, h) = (6, 5);
+        let on = [(1, 1), (1, 2), (2, 1), (2, 2), (2, 3), (4, 4), (0, 5)];
+        let mut mask = vec![false; w * h];
+        for (y, x) in on {
+            mask[y * w + x] = true;
+        }
+        open(&mut mask, (w, h));
+        let kept: Vec<_> = (0..w * h)
+            .filter(|&i| mask[i])
+            .map(|i| (i / w, i % w))
+            .collect();
+        assert_eq!(kept, vec![(1, 1), (1, 2), (2, 1), (2, 2)]);
+    }
+
+    #[test]
+    fn near_visits_the_grown_square_once_each() {
+        let (w, h) = (9, 7);
+        let mut mask = vec![false; w * h];
+        mask[3 * w + 1] = true;
+        let mut rows = vec![0.0; w * h];
+        let mut seen = Vec::new();
+        near(&mask, (w, h), 2, &mut rows, |i| seen.push((i / w, i % w)));
+        let want: Vec<_> = (1..6).flat_map(|y| (0..4).map(move |x| (y, x))).collect();
+        assert_eq!(seen, want);
+    }
+}
