@@ -213,6 +213,37 @@ mod tests {
         }
     }
 
+    /// Tiny and thin images have no 2x2 lamp over a dark window and stay as they were; a
+    /// lamp in a corner, whose windows the image's edges cut, gets its factor.
+    #[test]
+    fn tiny_images_and_a_lamp_in_the_corner() {
+        for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 2), (3, 5)] {
+            let input: Vec<f32> = (0..w * h).map(|i| if i == 0 { 1e4 } else { 0.0 }).collect();
+            let mut out: Vec<f32> = input.iter().flat_map(|&v| [0.5 * v; 3]).collect();
+            let before = out.clone();
+            restore_lamps(&mut out, &input, (w, h)).unwrap();
+            assert_eq!(out, before, "{w}x{h}");
+        }
+        let (w, h) = (33, 20);
+        let lamp = |i: usize| i % w < 2 && i / w < 2;
+        let input: Vec<f32> = (0..w * h)
+            .map(|i| if lamp(i) { 100.0 } else { 0.1 })
+            .collect();
+        let mut out: Vec<f32> = (0..w * h)
+            .flat_map(|i| [if lamp(i) { 80.0f32 } else { 0.1 }; 3])
+            .collect();
+        let l = luma([1.0; 3]) as f32;
+        let luma_in: Vec<f32> = input.iter().map(|&v| v * l).collect();
+        restore_lamps(&mut out, &luma_in, (w, h)).unwrap();
+        for (i, p) in out.chunks_exact(3).enumerate() {
+            let want = if lamp(i) { 100.0 } else { 0.1 };
+            assert!(
+                p.iter().all(|&v| (v / want - 1.0).abs() < 1e-5),
+                "{i}: {p:?}"
+            );
+        }
+    }
+
     #[test]
     fn the_opening_keeps_blocks_and_drops_lone_pixels() {
         let (w, h) = (6, 5);
