@@ -309,16 +309,17 @@ fn row_means(
     Ok(Array3::from_shape_vec((h, w, 3), rows).expect("one mean per pixel and channel"))
 }
 
-/// One row of [`row_means`]: `dst` (interleaved like `line`) gets each pixel's per-channel
-/// mean over its segment of radius `r`; `prefix` (w + 1 long) is scratch.
-fn segment_means(line: &[f32], r: usize, prefix: &mut [[f64; 3]], dst: &mut [f32]) {
-    let w = line.len() / 3;
-    for (x, p) in line.chunks_exact(3).enumerate() {
-        for k in 0..3 {
+/// One row of [`row_means`] (or of a plane of `C` channels, the lamps' one):
+/// `dst` (interleaved like `line`) gets each pixel's per-channel mean over its segment of
+/// radius `r`; `prefix` (w + 1 long) is scratch.
+fn segment_means<const C: usize>(line: &[f32], r: usize, prefix: &mut [[f64; C]], dst: &mut [f32]) {
+    let w = line.len() / C;
+    for (x, p) in line.chunks_exact(C).enumerate() {
+        for k in 0..C {
             prefix[x + 1][k] = prefix[x][k] + p[k] as f64;
         }
     }
-    for (x, d) in dst.chunks_exact_mut(3).enumerate() {
+    for (x, d) in dst.chunks_exact_mut(C).enumerate() {
         let (lo, hi) = window(x, w, r);
         let n = (hi - lo) as f64;
         for (k, v) in d.iter_mut().enumerate() {
@@ -328,8 +329,9 @@ fn segment_means(line: &[f32], r: usize, prefix: &mut [[f64; 3]], dst: &mut [f32
 }
 
 /// The (2r + 1)^2 window means of an image row by row, in order: the [`row_means`]
-/// averaged over the window's rows, in float64 running sums. The rows are passed to every
-/// step, not held, so a caller may rewrite rows the window has passed.
+/// averaged over the window's rows, in float64 running sums, for any number of channels
+/// (the lamps' planes have one). The rows are passed to every step, not held, so a caller
+/// may rewrite rows the window has passed.
 struct WindowMeans {
     r: usize,
     acc: Array2<f64>,
@@ -338,11 +340,11 @@ struct WindowMeans {
 
 impl WindowMeans {
     fn new(rows: ArrayView3<'_, f32>, r: usize) -> Self {
-        let (h, w, _) = rows.dim();
+        let (h, w, c) = rows.dim();
         let mut means = WindowMeans {
             r,
-            acc: Array2::zeros((w, 3)),
-            mean: Array2::zeros((w, 3)),
+            acc: Array2::zeros((w, c)),
+            mean: Array2::zeros((w, c)),
         };
         for y in 0..r.min(h) {
             means.add(rows, y, 1.0);

@@ -13,7 +13,9 @@
 
 use std::collections::TryReserveError;
 
-use super::{window, SPREAD_RADIUS};
+use ndarray::{ArrayView2, ArrayView3};
+
+use super::{segment_means, WindowMeans, SPREAD_RADIUS};
 use crate::color::LUMA_WEIGHTS;
 
 /// A lamp stands above this many times its window mean (radius [`SPREAD_RADIUS`]), in the
@@ -82,62 +84,47 @@ pub(super) fn restore_lamps(
 }
 
 /// Calls `mark(i, v > LAMP_ABOVE * mean)` for every pixel i, row by row, where v is
-/// `value(i)` and mean its mean over the (2 [`SPREAD_RADIUS`] + 1)^2 window inside the
-/// image. `rows` (w * h) is scratch.
+/// `value(i)` (as f32, like the spread's row means) and mean its mean over the
+/// (2 [`SPREAD_RADIUS`] + 1)^2 window inside the image. `rows` (w * h) is scratch.
 fn above_window_mean(
     value: impl Fn(usize) -> f64,
     (w, h): (usize, usize),
     rows: &mut [f32],
     mut mark: impl FnMut(usize, bool),
 ) {
-    debug_assert_eq!(rows.len(), w * h);
-    segments(&value, w, SPREAD_RADIUS, true, rows);
-    window_rows(rows, w, SPREAD_RADIUS, |y, acc, n| {
-        for (x, a) in acc.iter().enumerate() {
-            let i = y * w + x;
-            mark(i, value(i) > LAMP_ABOVE * (a / n));
+    let plane = |y: usize, line: &mut [f32]| {
+        for (x, v) in line.iter_mut().enumerate() {
+            *v = value(y * w + x) as f32;
+        }
+    };
+    window_means(plane, (w, h), SPREAD_RADIUS, rows, |y, line, means| {
+        for (x, (&v, m)) in line.iter().zip(means).enumerate() {
+            mark(y * w + x, v as f64 > LAMP_ABOVE * m);
         }
     });
 }
 
-/// Fills `rows` (w * h) with each pixel's sum (or, `mean`, mean) of `value` over its row
-/// segment of radius `r` inside the image: a window is the product of such segments.
-fn segments(value: impl Fn(usize) -> f64, w: usize, r: usize, mean: bool, rows: &mut [f32]) {
-    let mut prefix = vec![0f64; w + 1];
+/// Calls `each(y, line, means)` for every row y in order: `line` the row of a one-channel
+/// plane that `fill(y, line)` writes, `means` its (2r + 1)^2 window means inside the
+/// image, by the spread's own [`segment_means`] and [`WindowMeans`]. `rows` (w * h) is
+/// scratch for the row segments' means.
+fn window_means(
+    fill: impl Fn(usize, &mut [f32]),
+    (w, h): (usize, usize),
+    r: usize,
+    rows: &mut [f32],
+    mut each: impl FnMut(usize, &[f32], ArrayView2<'_, f64>),
+) {
+    let (mut line, mut prefix) = (vec![0f32; w], vec![[0f64; 1]; w + 1]);
     for (y, dst) in rows.chunks_exact_mut(w).enumerate() {
-        for x in 0..w {
-            prefix[x + 1] = prefix[x] + value(y * w + x);
-        }
-        for (x, d) in dst.iter_mut().enumerate() {
-            let (lo, hi) = window(x, w, r);
-            let n = if mean { (hi - lo) as f64 } else { 1.0 };
-            *d = ((prefix[hi] - prefix[lo]) / n) as f32;
-        }
+        fill(y, &mut line);
+        segment_means(&line, r, &mut prefix, dst);
     }
-}
-
-/// Calls `each(y, sums, n)` for every row y: `sums` the column sums of `rows` over the n
-/// rows within `r` of y inside the image, kept as running float64 sums.
-fn window_rows(rows: &[f32], w: usize, r: usize, mut each: impl FnMut(usize, &[f64], f64)) {
-    let h = rows.len() / w;
-    let mut acc = vec![0f64; w];
-    let add = |acc: &mut [f64], y: usize, sign: f64| {
-        for (a, &v) in acc.iter_mut().zip(&rows[y * w..(y + 1) * w]) {
-            *a += sign * v as f64;
-        }
-    };
-    for y in 0..r.min(h) {
-        add(&mut acc, y, 1.0);
-    }
+    let rows = ArrayView3::from_shape((h, w, 1), &*rows).expect("one mean per pixel");
+    let mut means = WindowMeans::new(rows, r);
     for y in 0..h {
-        if y + r < h {
-            add(&mut acc, y + r, 1.0);
-        }
-        if y > r {
-            add(&mut acc, y - r - 1, -1.0);
-        }
-        let (lo, hi) = window(y, h, r);
-        each(y, &acc, (hi - lo) as f64);
+        fill(y, &mut line);
+        each(y, &line, means.next(rows, y));
     }
 }
 
@@ -164,8 +151,10 @@ fn open(mask: &mut [bool], (w, h): (usize, usize)) {
 }
 
 /// Calls `visit(i)` for every pixel i within `r` pixels (a (2r + 1)^2 square) of a pixel of
-/// `mask`, row by row. `rows` (w * h) is scratch. The counts are small integers, exact in
-/// f32 and in the running sums, so an empty window sums to exactly 0.
+/// `mask`, row by row. `rows` (w * h) is scratch. A window's mean of the 0/1 mask is
+/// positive exactly when it holds a mask pixel: the row means are 0 or f32 values of at
+/// least 1 / (2r + 1), which float64 running sums add and take out without rounding, so an
+/// empty window sums to exactly 0.
 fn near(
     mask: &[bool],
     (w, h): (usize, usize),
@@ -173,10 +162,13 @@ fn near(
     rows: &mut [f32],
     mut visit: impl FnMut(usize),
 ) {
-    debug_assert_eq!(mask.len(), w * h);
-    segments(|i| mask[i] as u8 as f64, w, r, false, rows);
-    window_rows(rows, w, r, |y, counts, _| {
-        for (x, _) in counts.iter().enumerate().filter(|(_, &c)| c > 0.0) {
+    let plane = |y: usize, line: &mut [f32]| {
+        for (v, &m) in line.iter_mut().zip(&mask[y * w..(y + 1) * w]) {
+            *v = m as u8 as f32;
+        }
+    };
+    window_means(plane, (w, h), r, rows, |y, _, means| {
+        for (x, _) in means.iter().enumerate().filter(|(_, &m)| m > 0.0) {
             visit(y * w + x);
         }
     });
