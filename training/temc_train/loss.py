@@ -50,9 +50,9 @@ def _blur(x: torch.Tensor, which: slice = slice(None)) -> torch.Tensor:
     as matrix products: exactly the 1-D convolutions with replicate padding (which keeps
     the borders of small crops from reading as dark edges), 4x faster on a CPU than conv2d
     with these shapes, where this loss took 60 % of a training step. Each pass is one
-    large product rather than one per plane and window (a batch of 128 x 128 products
-    ran at half the speed, and broadcasting x against the windows copied it S times):
-    along rows by every window at once, then along columns by each window on its own."""
+    large product rather than one per plane and window (broadcasting x against the
+    windows copied it S times): along rows by every window at once, then along columns
+    by each window on its own (docs/reconstruction.md, "two training functions")."""
     b, _, h, w = x.shape
     mh = _blur_matrix(h, x.device, x.dtype)[which]
     mw = _blur_matrix(w, x.device, x.dtype)[which]

@@ -163,8 +163,8 @@ _MEDIAN9 = ((1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 
 
 def median9(taps):
     """[N, 9, H, W] -> [N, 1, H, W]: the median of the nine values per pixel, the value
-    torch.median gives, by a sorting network of minima and maxima: 6x faster on a CPU,
-    where torch.median over a dim of nine took 5 % of a training step."""
+    torch.median gives, by a sorting network of minima and maxima: torch.median over a
+    dim of nine took 5 % of a training step on the CPU (docs/reconstruction.md)."""
     p = list(taps.unbind(1))
     for a, b in _MEDIAN9:
         p[a], p[b] = torch.minimum(p[a], p[b]), torch.maximum(p[a], p[b])
