@@ -103,29 +103,32 @@ def ictcp(rgb, scale):
     return tuple(ictcp_planes(lin, floor=0.0)[0].numpy())
 
 
-def itp_differences(x, r):
-    """Per pixel, BT.2124's three differences (I, T = Ct / 2, P = Cp) of x from the
-    reference r, each times 720, at the reference's automatic exposure."""
+def itp_errors(x, r) -> dict:
+    """Delta E ITP (BT.2124: 720 sqrt(dI^2 + dT^2 + dP^2), T = Ct / 2, P = Cp) of x from
+    the reference r at the reference's automatic exposure, and its two parts: dE-I, mean
+    720 |dI| (light and dark, not colour), and dE-CtCp, mean 720 sqrt(dT^2 + dP^2) (the
+    colour noise the paper's chroma/luma split targets). One ICtCp conversion for all
+    three."""
     s = auto_input_scale(r)
     (i1, t1, p1), (i2, t2, p2) = ictcp(x, s), ictcp(r, s)
-    return 720 * (i1 - i2), 360 * (t1 - t2), 720 * (p1 - p2)
+    di, dt, dp = 720 * (i1 - i2), 360 * (t1 - t2), 720 * (p1 - p2)
+    return {"dE-ITP": float(np.mean(np.sqrt(di ** 2 + dt ** 2 + dp ** 2))),
+            "dE-I": float(np.mean(np.abs(di))),
+            "dE-CtCp": float(np.mean(np.sqrt(dt ** 2 + dp ** 2)))}
 
 
 def delta_e_itp(x, r):
-    di, dt, dp = itp_differences(x, r)
-    return float(np.mean(np.sqrt(di ** 2 + dt ** 2 + dp ** 2)))
+    return itp_errors(x, r)["dE-ITP"]
 
 
 def delta_e_intensity(x, r):
-    """Delta E ITP's intensity part alone, mean 720 |dI|: light and dark, not colour."""
-    return float(np.mean(np.abs(itp_differences(x, r)[0])))
+    """Delta E ITP's intensity part alone (itp_errors)."""
+    return itp_errors(x, r)["dE-I"]
 
 
 def delta_e_chroma(x, r):
-    """Delta E ITP's chroma part alone, mean 720 sqrt((dCt / 2)^2 + dCp^2): the colour
-    noise the paper's chroma/luma split targets."""
-    _, dt, dp = itp_differences(x, r)
-    return float(np.mean(np.sqrt(dt ** 2 + dp ** 2)))
+    """Delta E ITP's chroma part alone (itp_errors)."""
+    return itp_errors(x, r)["dE-CtCp"]
 
 
 def mean_ratio(x, r):
@@ -169,7 +172,8 @@ METRICS = {"RelMSE": relmse, "SMAPE": smape, "PSNR-PQ": psnr_pq, "SSIM-PQ": ssim
 
 
 def all_metrics(x, r) -> dict:
-    return {k: f(x, r) for k, f in METRICS.items()}
+    itp = itp_errors(x, r)  # the three Delta E ITP metrics from one conversion
+    return {k: itp[k] if k in itp else f(x, r) for k, f in METRICS.items()}
 
 
 def read_pfm(path):

@@ -132,8 +132,8 @@ NOTES = {
                   "Cycles family and less dE ITP at 4, 16 and 64; 4.9, 5.3 and 0.6 % less on "
                   "our held-out families at 4, 16 and 64 spp; named-prism at 4 spp 1.54x "
                   "(docs/reconstruction.md, 'A third long cycle for fast, a second for "
-                  "balanced'). The Cycles family, never trained on, is its verdict (docs/cycles-report.md); it continues on "
-                  "GPUs (scripts/gpu-session 8 fast).",
+                  "balanced'). The Cycles family, never trained on, is its verdict "
+                  "(docs/cycles-report.md); it continues on GPUs (scripts/gpu-session 8 fast).",
     "temc2-balanced": "Grown from the one-level balanced run (temc2-w0.125-energy, which shipped "
                       "as balanced until 2026-12-06): its first 8 CPU-hours (28,800 s, 39,512 "
                       "steps) are that run's, on spectral-v2. As 3 levels it trained 3.0 CPU-hours "

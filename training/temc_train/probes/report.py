@@ -199,12 +199,12 @@ def targets(denoisers, spps, values, geomean, mean) -> list:
 def delta_e_parts(ours, spps, mean) -> list:
     """Delta E ITP's ratio to OIDN high's beside its intensity part's and its chroma part's
     (evaluate.delta_e_intensity, delta_e_chroma): which of the two a model misses on."""
+    if not np.isfinite(mean("OIDN high", max(spps, default=0), "dE-I")):
+        return []  # measured before the parts were
     md = ["Delta E ITP split into its intensity part (mean 720 |dI|: light and dark) and its "
           "chroma part (mean 720 sqrt((dCt / 2)^2 + dCp^2): colour), each as a ratio to OIDN "
           "high's:", "", "| model | spp | dE ITP / OIDN | intensity / OIDN | chroma / OIDN |",
           "|---|---:|---:|---:|---:|"]
-    if not np.isfinite(mean("OIDN high", max(spps, default=0), "dE-I")):
-        return []  # measured before the parts were
     for n in ours:
         for spp in (s for s, _, _ in TARGETS if s in spps):
             md.append(f"| {n} | {spp} | " + " | ".join(
